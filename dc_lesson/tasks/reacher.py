@@ -1,0 +1,140 @@
+"""``reacher1``, ``reacher2``, ``reacher4``: a two-link planar arm and K fixed targets.
+
+The paper's Reacher-v2 draws one random target per episode and shows it to the policy; its
+multi-target variants (Reacher2, Reacher4) have fixed targets that the policy does *not* see, so
+which target an episode goes to is a property of the policy: the behaviour modes.  The port uses
+dm_control's reacher arm (0.12 m upper arm, 0.12 m forearm to the fingertip) with the targets
+placed on a circle of radius ``TARGET_RADIUS`` at fixed angles:
+
+=========  ===========================  =========================
+task       target angles (degrees)      colours (as the paper's)
+=========  ===========================  =========================
+reacher1   45                           red
+reacher2   45, 225                      red, blue
+reacher4   45, 135, 225, 315            red, green, blue, yellow
+=========  ===========================  =========================
+
+Reward per step is 1 while the fingertip is inside *any* target (within target + finger radius,
+as the suite's reacher) and 0 otherwise, so every target is equally good.  The observation is
+(cos, sin) of both joint angles, the fingertip's x-y position and the two joint velocities
+(8 numbers); there is no target in it.  Episodes start from uniformly random joint angles
+(the suite's randomiser) at rest.
+"""
+
+from __future__ import annotations
+
+import collections
+
+import numpy as np
+from dm_control.suite import reacher as suite_reacher
+from dm_control.utils import rewards
+
+from dc_lesson.tasks.base import PortTask, TaskSpec
+
+TARGET_RADIUS = 0.16   # distance of each target from the shoulder (m); the reach is 0.24
+TARGET_SIZE = 0.03     # radius of a target sphere (m)
+_COLOURS = {45: ("red", "0.85 0.15 0.15 1"), 135: ("green", "0.15 0.7 0.2 1"),
+            225: ("blue", "0.15 0.35 0.9 1"), 315: ("yellow", "0.95 0.8 0.1 1")}
+ANGLES = {1: (45,), 2: (45, 225), 4: (45, 135, 225, 315)}
+
+
+def target_positions(n_targets: int) -> np.ndarray:
+    """(K, 2) x-y positions of the targets of ``reacher{K}``."""
+    ang = np.deg2rad(np.array(ANGLES[n_targets], dtype=np.float64))
+    return TARGET_RADIUS * np.stack([np.cos(ang), np.sin(ang)], axis=1)
+
+
+def target_colours(n_targets: int) -> tuple[str, ...]:
+    return tuple(_COLOURS[a][0] for a in ANGLES[n_targets])
+
+
+def _spec(k: int) -> TaskSpec:
+    paper = "Reacher-v2" if k == 1 else f"Reacher{k} ({k} fixed targets)"
+    differs = ("one fixed target that is not observed (Gym draws a random target per episode "
+               "and observes it); reward 1 inside the target, else 0" if k == 1 else
+               f"{k} fixed unobserved targets, reward 1 inside any of them, else 0")
+    return TaskSpec(
+        name=f"reacher{k}", paper_task=paper, base="suite reacher arm, custom targets",
+        obs_dim=8, act_dim=2, horizon=1000, control_timestep=0.02, n_sub_steps=1,
+        mode_feature_names=("fingertip x", "fingertip y"),
+        modes=target_colours(k) if k > 1 else (), differs=differs)
+
+
+SPECS = {k: _spec(k) for k in ANGLES}
+
+
+def get_model_and_assets(n_targets: int):
+    xml, assets = suite_reacher.get_model_and_assets()
+    xml = xml.decode() if isinstance(xml, bytes) else xml
+    old = '<geom name="target" pos="0 0 .01" material="target" type="sphere" size=".05"/>'
+    if old not in xml:  # pragma: no cover - guards against a changed dm_control
+        raise RuntimeError("dm_control's reacher.xml changed: cannot place the targets")
+    geoms = []
+    for i, (x, y) in enumerate(target_positions(n_targets)):
+        _, rgba = _COLOURS[ANGLES[n_targets][i]]
+        geoms.append(f'<geom name="target{i}" pos="{x:.6f} {y:.6f} .01" type="sphere" '
+                     f'size="{TARGET_SIZE}" rgba="{rgba}" contype="0" conaffinity="0"/>')
+    return xml.replace(old, "\n    ".join(geoms)), assets
+
+
+class Physics(suite_reacher.Physics):
+    def fingertip(self) -> np.ndarray:
+        """x-y position of the fingertip."""
+        return self.named.data.geom_xpos["finger", :2].copy()
+
+    def finger_to_targets_dist(self) -> np.ndarray:
+        """Distance from the fingertip to each target centre."""
+        targets = self.data.geom_xpos[self._target_ids, :2]
+        return np.linalg.norm(targets - self.fingertip(), axis=1)
+
+    @property
+    def _target_ids(self):
+        ids = getattr(self, "_cached_target_ids", None)
+        if ids is None:
+            names = [self.model.id2name(i, "geom") for i in range(self.model.ngeom)]
+            ids = [i for i, n in enumerate(names) if n.startswith("target")]
+            self._cached_target_ids = ids
+        return ids
+
+
+class ReachAny(PortTask):
+    """Reach any of the fixed targets and stay there."""
+
+    camera = "fixed"
+
+    def __init__(self, n_targets: int, random=None):
+        self.n_targets = n_targets
+        self.targets = target_positions(n_targets)
+        super().__init__(random=random)
+
+    def initialize_episode(self, physics):
+        from dm_control.suite.utils import randomizers
+        randomizers.randomize_limited_and_rotational_joints(physics, self.random)
+        super().initialize_episode(physics)
+
+    def get_observation(self, physics):
+        q = physics.data.qpos
+        obs = collections.OrderedDict()
+        obs["position"] = np.array([np.cos(q[0]), np.sin(q[0]), np.cos(q[1]), np.sin(q[1])])
+        obs["fingertip"] = physics.fingertip()
+        obs["velocity"] = physics.data.qvel.copy()
+        return obs
+
+    def get_reward(self, physics):
+        radii = TARGET_SIZE + physics.named.model.geom_size["finger", 0]
+        return float(np.max(rewards.tolerance(physics.finger_to_targets_dist(), (0, radii))))
+
+    def mode_feature(self, physics):
+        return physics.fingertip()
+
+    def classify_mode(self, features):
+        # Index of the nearest target to each fingertip position.
+        f = np.asarray(features)[..., None, :2]
+        return np.argmin(np.linalg.norm(f - self.targets, axis=-1), axis=-1)
+
+
+def make_factory(k: int):
+    def make(random):
+        physics = Physics.from_xml_string(*get_model_and_assets(k))
+        return physics, ReachAny(k, random=random)
+    return make
