@@ -12,26 +12,55 @@ from the paper's Gym task); ``tasks.spec_table()`` gives them as rows for a tabl
 
 from __future__ import annotations
 
+import dataclasses
+import functools
+from typing import Callable
+
 import numpy as np
+from dm_control.suite import cartpole as suite_cartpole
+from dm_control.suite import cheetah as suite_cheetah
+from dm_control.suite import hopper as suite_hopper
+from dm_control.suite import humanoid as suite_humanoid
+from dm_control.suite import walker as suite_walker
 
 from dc_lesson.tasks import ant, cartpole, cheetah, hopper, humanoid, reacher, walker
 from dc_lesson.tasks.base import ActionError, PortTask, TaskEnv, TaskSpec
 
-_FACTORIES = {
-    "cartpole": (cartpole.SPEC, cartpole.make),
-    "reacher1": (reacher.SPECS[1], reacher.make_factory(1)),
-    "reacher2": (reacher.SPECS[2], reacher.make_factory(2)),
-    "reacher4": (reacher.SPECS[4], reacher.make_factory(4)),
-    "hopper": (hopper.SPEC, hopper.make),
-    "walker": (walker.SPEC, walker.make),
-    "halfcheetah": (cheetah.SPEC, cheetah.make),
-    "halfcheetah2": (cheetah.SPEC2, cheetah.make2),
-    "ant": (ant.SPEC, ant.make),
-    "humanoid": (humanoid.SPEC, humanoid.make),
-}
+@dataclasses.dataclass(frozen=True)
+class Port:
+    """How to build one task port: its spec, Physics class, model and Task class."""
+    spec: TaskSpec
+    physics: type
+    model_and_assets: Callable[[], tuple]
+    task: Callable[..., PortTask]   # called with random=RandomState
 
-NAMES: tuple[str, ...] = tuple(_FACTORIES)
-SPECS: dict[str, TaskSpec] = {name: spec for name, (spec, _) in _FACTORIES.items()}
+
+_PORTS = {
+    "cartpole": Port(cartpole.SPEC, cartpole.Physics, suite_cartpole.get_model_and_assets,
+                     cartpole.Balance),
+    "reacher1": Port(reacher.SPECS[1], reacher.Physics,
+                     functools.partial(reacher.get_model_and_assets, 1),
+                     functools.partial(reacher.ReachAny, 1)),
+    "reacher2": Port(reacher.SPECS[2], reacher.Physics,
+                     functools.partial(reacher.get_model_and_assets, 2),
+                     functools.partial(reacher.ReachAny, 2)),
+    "reacher4": Port(reacher.SPECS[4], reacher.Physics,
+                     functools.partial(reacher.get_model_and_assets, 4),
+                     functools.partial(reacher.ReachAny, 4)),
+    "hopper": Port(hopper.SPEC, hopper.Physics, suite_hopper.get_model_and_assets, hopper.Hop),
+    "walker": Port(walker.SPEC, walker.Physics, suite_walker.get_model_and_assets, walker.Walk),
+    "halfcheetah": Port(cheetah.SPEC, cheetah.Physics, suite_cheetah.get_model_and_assets,
+                        cheetah.Run),
+    "halfcheetah2": Port(cheetah.SPEC2, cheetah.Physics, suite_cheetah.get_model_and_assets,
+                         cheetah.RunEitherWay),
+    "ant": Port(ant.SPEC, ant.Physics, ant.get_model_and_assets, ant.Run),
+    "humanoid": Port(humanoid.SPEC, humanoid.Physics, suite_humanoid.get_model_and_assets,
+                     humanoid.Walk),
+}
+_MODELS: dict = {}   # compiled models, one per task and process: compiling costs ~0.1 s
+
+NAMES: tuple[str, ...] = tuple(_PORTS)
+SPECS: dict[str, TaskSpec] = {name: port.spec for name, port in _PORTS.items()}
 
 
 class UnknownTaskError(KeyError):
@@ -42,7 +71,7 @@ class UnknownTaskError(KeyError):
 
 
 def check_name(name: str) -> str:
-    if name not in _FACTORIES:
+    if name not in _PORTS:
         raise UnknownTaskError(
             f"unknown task {name!r}; the tasks are: {', '.join(NAMES)}")
     return name
@@ -57,9 +86,12 @@ def load(name: str, seed: int | None = None) -> TaskEnv:
 
     Raises :class:`UnknownTaskError` (a ``KeyError``) naming the valid tasks for a wrong name.
     """
-    task_spec, factory = _FACTORIES[check_name(name)]
-    physics, task = factory(np.random.RandomState(seed))
-    return TaskEnv(task_spec, physics, task)
+    port = _PORTS[check_name(name)]
+    if name not in _MODELS:
+        _MODELS[name] = port.physics.from_xml_string(*port.model_and_assets()).model
+    # Each environment gets its own copy of the model, so a task may change it safely.
+    physics = port.physics.from_model(_MODELS[name].copy())
+    return TaskEnv(port.spec, physics, port.task(random=np.random.RandomState(seed)))
 
 
 def spec_table() -> list[dict]:

@@ -74,7 +74,3 @@ class Run(PortTask):
 
     def mode_feature(self, physics):
         return np.array([physics.speed()])
-
-
-def make(random):
-    return Physics.from_xml_string(*get_model_and_assets()), Run(random=random)

@@ -35,8 +35,3 @@ class Balance(suite_cartpole.Balance, PortTask):
 
     def mode_feature(self, physics):
         return np.array([physics.cart_position(), physics.pole_angle()])
-
-
-def make(random):
-    physics = Physics.from_xml_string(*suite_cartpole.get_model_and_assets())
-    return physics, Balance(random=random)

@@ -54,15 +54,3 @@ class RunEitherWay(Run):
     def classify_mode(self, features):
         # 0 = forward, 1 = backward, by the sign of the forward speed.
         return (np.asarray(features)[..., 0] < 0).astype(np.int64)
-
-
-def _physics():
-    return Physics.from_xml_string(*suite_cheetah.get_model_and_assets())
-
-
-def make(random):
-    return _physics(), Run(random=random)
-
-
-def make2(random):
-    return _physics(), RunEitherWay(random=random)

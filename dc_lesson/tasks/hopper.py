@@ -32,8 +32,3 @@ class Hop(suite_hopper.Hopper, PortTask):
 
     def mode_feature(self, physics):
         return np.array([physics.height(), physics.speed()])
-
-
-def make(random):
-    physics = Physics.from_xml_string(*suite_hopper.get_model_and_assets())
-    return physics, Hop(random=random)

@@ -32,8 +32,3 @@ class Walk(suite_humanoid.Humanoid, PortTask):
     def mode_feature(self, physics):
         speed = np.linalg.norm(physics.center_of_mass_velocity()[:2])
         return np.array([physics.head_height(), speed])
-
-
-def make(random):
-    physics = Physics.from_xml_string(*suite_humanoid.get_model_and_assets())
-    return physics, Walk(random=random)

@@ -131,10 +131,3 @@ class ReachAny(PortTask):
         # Index of the nearest target to each fingertip position.
         f = np.asarray(features)[..., None, :2]
         return np.argmin(np.linalg.norm(f - self.targets, axis=-1), axis=-1)
-
-
-def make_factory(k: int):
-    def make(random):
-        physics = Physics.from_xml_string(*get_model_and_assets(k))
-        return physics, ReachAny(k, random=random)
-    return make

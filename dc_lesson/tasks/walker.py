@@ -31,8 +31,3 @@ class Walk(suite_walker.PlanarWalker, PortTask):
 
     def mode_feature(self, physics):
         return np.array([physics.torso_height(), physics.horizontal_velocity()])
-
-
-def make(random):
-    physics = Physics.from_xml_string(*suite_walker.get_model_and_assets())
-    return physics, Walk(random=random)

@@ -1,0 +1,55 @@
+"""One switch scales every experiment: ``DC_LESSON_BUDGET`` = ``smoke`` | ``lesson`` | ``paper``.
+
+* ``smoke``: CI executes the whole book with it; every notebook in well under a minute, and the
+  numbers it prints are meaningless (each chapter says so when it runs at ``smoke``).
+* ``lesson`` (the default): a real result on a 2-core laptop CPU in minutes.
+* ``paper``: the paper's sizes (25 demonstrations, many iterations, several seeds); hours, for
+  background runs.
+
+All presets live in the one table below; code asks ``current()`` for its sizes rather than
+branching on the budget's name.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+
+ENV_VAR = "DC_LESSON_BUDGET"
+DEFAULT = "lesson"
+
+
+@dataclasses.dataclass(frozen=True)
+class Budget:
+    name: str
+    tour_episodes: int        # random-policy episodes per task in the tour
+    video_steps: int          # control steps shown in a task's video
+    bench_steps: int          # control steps per task in the rollout benchmark
+
+    @property
+    def is_smoke(self) -> bool:
+        return self.name == "smoke"
+
+
+PRESETS: dict[str, Budget] = {
+    "smoke": Budget("smoke", tour_episodes=2, video_steps=20, bench_steps=300),
+    "lesson": Budget("lesson", tour_episodes=10, video_steps=150, bench_steps=3000),
+    "paper": Budget("paper", tour_episodes=50, video_steps=400, bench_steps=20000),
+}
+
+
+class BudgetError(ValueError):
+    """An unknown budget name."""
+
+
+def get(name: str) -> Budget:
+    try:
+        return PRESETS[name]
+    except KeyError:
+        raise BudgetError(f"unknown budget {name!r} (from {ENV_VAR}); the budgets are: "
+                          f"{', '.join(PRESETS)}") from None
+
+
+def current() -> Budget:
+    """The budget named by ``DC_LESSON_BUDGET`` (``lesson`` when unset)."""
+    return get(os.environ.get(ENV_VAR, DEFAULT).strip() or DEFAULT)

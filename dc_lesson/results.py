@@ -1,0 +1,67 @@
+"""Result files under ``data/results/``: JSON with the provenance every stored figure carries
+(the command that made it, seeds, budget, git revision, time), written atomically."""
+
+from __future__ import annotations
+
+import datetime
+import json
+import os
+import pathlib
+import subprocess
+import tempfile
+
+from dc_lesson import budget as _budget
+
+ROOT = pathlib.Path(__file__).resolve().parent.parent
+RESULTS = ROOT / "data" / "results"
+
+
+def git_revision() -> str:
+    try:
+        rev = subprocess.run(["git", "rev-parse", "HEAD"], cwd=ROOT, capture_output=True,
+                             text=True, timeout=10).stdout.strip()
+        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"],
+                               cwd=ROOT, capture_output=True, text=True, timeout=10).stdout.strip()
+        return (rev or "unknown") + ("+dirty" if dirty else "")
+    except (OSError, subprocess.SubprocessError):
+        return "unknown"
+
+
+def atomic_write_text(path, text: str) -> None:
+    """Writes via a temporary file and a rename, so a crash never leaves half a file."""
+    path = pathlib.Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=path.name + ".", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "w") as f:
+            f.write(text)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
+def write_result(path, payload: dict, *, command: str, seeds) -> pathlib.Path:
+    path = pathlib.Path(path)
+    record = {"command": command, "seeds": list(seeds), "budget": _budget.current().name,
+              "revision": git_revision(),
+              "time": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+              **payload}
+    atomic_write_text(path, json.dumps(record, indent=1, default=float) + "\n")
+    return path
+
+
+def read_result(name_or_path) -> dict:
+    path = pathlib.Path(name_or_path)
+    if not path.is_absolute() and not path.exists():
+        path = RESULTS / path
+    try:
+        return json.loads(path.read_text())
+    except FileNotFoundError:
+        raise FileNotFoundError(f"result file {path} is missing; it is made by the command "
+                                f"recorded in the book beside the figure") from None
+    except json.JSONDecodeError as e:
+        raise ValueError(f"result file {path} is not valid JSON ({e}); regenerate it") from None

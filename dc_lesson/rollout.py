@@ -1,0 +1,151 @@
+"""Collecting episodes from a policy into :class:`~dc_lesson.data.Trajectory` records.
+
+A *policy* is either a callable mapping a batch of observations, shape (B, obs_dim) float32, to
+a batch of actions (B, act_dim), or a ``torch.nn.Module`` (called under ``no_grad`` on a float32
+tensor; if it has an ``act`` method, that is called instead of ``forward``).  Episodes are run
+``batch`` at a time in lockstep, so a network policy is evaluated once per time step for the
+whole batch rather than once per environment.
+
+A policy with memory or with a per-episode choice (an expert that picks a target by a coin
+flip, say) may define ``reset(seeds)``: :func:`collect` calls it with the batch's episode seeds
+(an int64 array) before the first step of every batch, so its choices are a deterministic
+function of the episode seed.
+
+Seeds: episode ``i`` of ``collect(..., seed=s)`` starts from the task's initial-state
+distribution seeded with ``episode_seeds(s, n)[i]``, so the same call gives the same episodes,
+and the first k episodes of a longer call are the same as those of a shorter one.
+"""
+
+from __future__ import annotations
+
+from typing import Callable, Union
+
+import numpy as np
+
+from dc_lesson import tasks as _tasks
+from dc_lesson.data import Trajectory
+
+Policy = Union[Callable[[np.ndarray], np.ndarray], "torch.nn.Module"]  # noqa: F821
+
+
+def episode_seeds(seed: int, n: int) -> np.ndarray:
+    """``n`` well-separated 32-bit seeds derived from one seed (NumPy's SeedSequence)."""
+    return np.random.SeedSequence(int(seed)).generate_state(n).astype(np.int64)
+
+
+class RandomPolicy:
+    """Uniformly random actions in the task's bounds, from its own seeded generator."""
+
+    def __init__(self, task: str, seed: int = 0):
+        env = _tasks.load(task)
+        self.low, self.high = env.action_low, env.action_high
+        self.rng = np.random.default_rng(seed)
+
+    def __call__(self, obs: np.ndarray) -> np.ndarray:
+        return self.rng.uniform(self.low, self.high, size=(len(obs), len(self.low)))
+
+
+def as_batch_policy(policy: Policy) -> Callable[[np.ndarray], np.ndarray]:
+    """Wraps a torch module as a numpy batch policy; returns other callables unchanged."""
+    try:
+        import torch
+    except ImportError:  # pragma: no cover - torch is a dependency
+        return policy
+    if not isinstance(policy, torch.nn.Module):
+        return policy
+    module = policy
+    call = getattr(module, "act", module)
+
+    def numpy_policy(obs: np.ndarray) -> np.ndarray:
+        with torch.no_grad():
+            out = call(torch.as_tensor(obs, dtype=torch.float32))
+        return out.detach().cpu().numpy()
+    return numpy_policy
+
+
+def trajectory_mode(task: _tasks.PortTask, mode_features: np.ndarray) -> int:
+    """The mode an episode took: the most frequent per-step mode over its second half
+    (the first half is spent getting there)."""
+    labels = task.classify_mode(mode_features[len(mode_features) // 2:])
+    return int(np.bincount(labels.ravel()).argmax())
+
+
+def collect(task: str, policy: Policy, n_episodes: int, seed: int = 0, *,
+            batch: int = 16, max_steps: int | None = None,
+            progress: bool | None = None) -> list[Trajectory]:
+    """Runs ``n_episodes`` episodes of ``policy`` on ``task``.
+
+    Args:
+        task: a task name (see ``dc_lesson.tasks.NAMES``).
+        policy: a batch policy (see the module docstring).
+        n_episodes: how many episodes.
+        seed: decides the episodes' initial states (see :func:`episode_seeds`).
+        batch: how many environments run in lockstep.
+        max_steps: stop episodes early (for quick looks; the horizon by default).
+        progress: show a progress bar (default: when the run is longer than a few seconds).
+    """
+    spec = _tasks.spec(task)
+    if n_episodes < 1:
+        raise ValueError(f"n_episodes must be at least 1, got {n_episodes}")
+    T = spec.horizon if max_steps is None else min(int(max_steps), spec.horizon)
+    act = as_batch_policy(policy)
+    seeds = episode_seeds(seed, n_episodes)
+    n_envs = max(1, min(batch, n_episodes))
+    envs = [_tasks.load(task) for _ in range(n_envs)]
+    if progress is None:
+        progress = n_episodes * T * spec.n_sub_steps > 200_000
+    bar = None
+    if progress:
+        from tqdm.auto import tqdm
+        bar = tqdm(total=n_episodes * T, desc=f"{task} rollouts", unit="step", leave=False)
+
+    out: list[Trajectory] = []
+    for start in range(0, n_episodes, n_envs):
+        chunk = seeds[start:start + n_envs]
+        B = len(chunk)
+        obs = np.zeros((B, T + 1, spec.obs_dim), np.float32)
+        acts = np.zeros((B, T, spec.act_dim), np.float32)
+        rews = np.zeros((B, T), np.float64)
+        feats = np.zeros((B, T + 1, spec.mode_dim), np.float32)
+        states = []
+        if hasattr(policy, "reset"):
+            policy.reset(np.asarray(chunk))
+        for b, (env, s) in enumerate(zip(envs, chunk)):
+            obs[b, 0] = env.reset(seed=int(s))
+            feats[b, 0] = env.mode_feature()
+            states.append(env.get_state())
+        for t in range(T):
+            a = np.asarray(act(obs[:, t]), dtype=np.float64).reshape(B, spec.act_dim)
+            for b in range(B):
+                env = envs[b]
+                # Round to float32 before applying, so the stored action replays exactly.
+                acts[b, t] = env.check_action(a[b])
+                obs[b, t + 1], rews[b, t], _ = env.step(acts[b, t])
+                feats[b, t + 1] = env.mode_feature()
+            if bar is not None:
+                bar.update(B)
+        for b in range(B):
+            out.append(Trajectory(task=task, observations=obs[b], actions=acts[b],
+                                  rewards=rews[b], mode_features=feats[b],
+                                  initial_state=states[b], seed=int(chunk[b]),
+                                  mode=trajectory_mode(envs[b].task, feats[b])))
+    if bar is not None:
+        bar.close()
+    return out
+
+
+def returns(trajectories: list[Trajectory]) -> np.ndarray:
+    return np.array([t.ret for t in trajectories])
+
+
+def replay(traj: Trajectory) -> tuple[np.ndarray, np.ndarray]:
+    """Replays a trajectory's actions from its initial state: (observations, rewards)."""
+    env = _tasks.load(traj.task)
+    env.reset(seed=traj.seed)
+    obs = [env.set_state(traj.initial_state)]
+    rews = []
+    for a in traj.actions:
+        o, r, _ = env.step(a)
+        obs.append(o)
+        rews.append(r)
+    return np.stack(obs), np.array(rews)
