@@ -1,0 +1,101 @@
+"""The ``dc-lesson`` command.
+
+    dc-lesson tour                 frames of the ten tasks, their specs and random returns
+    dc-lesson tasks                the spec table
+    dc-lesson bench rollout        rollout throughput against raw MuJoCo stepping
+
+Sizes follow ``DC_LESSON_BUDGET`` (smoke | lesson | paper); see ``dc_lesson.budget``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import pathlib
+import shlex
+import sys
+import time
+
+
+def _command_line() -> str:
+    return "dc-lesson " + " ".join(shlex.quote(a) for a in sys.argv[1:])
+
+
+def cmd_tasks(args) -> int:
+    from dc_lesson import tasks
+    for row in tasks.spec_table():
+        print(f"{row['task']:<13} obs {row['obs']:>3}  act {row['act']:>2}  horizon "
+              f"{row['horizon']}  dt {row['control dt (s)']:.3f}s  mode: {row['mode feature']}"
+              f"  [{row['dm_control base']}]")
+    return 0
+
+
+def cmd_tour(args) -> int:
+    from dc_lesson import budget, plots, tasks, tour
+    b = budget.current()
+    out = pathlib.Path(args.out)
+    t0 = time.time()
+    names = list(tasks.NAMES)
+    print(f"budget: {b.name} ({b.tour_episodes} random episodes per task)")
+    fig = plots.gallery(tour.frames(names), names, path=out / "tour_tasks.png")
+    stats = tour.random_returns(names, b.tour_episodes, seed=args.seed)
+    plots.return_bars(names, [stats[n]["mean"] for n in names], [stats[n]["std"] for n in names],
+                      title="random policy", path=out / "tour_random_returns.png")
+    del fig
+    print(f"\n{'task':<13}{'paper task':<40}{'obs':>4}{'act':>4}{'random return':>18}")
+    for n in names:
+        s = tasks.SPECS[n]
+        print(f"{n:<13}{s.paper_task:<40}{s.obs_dim:>4}{s.act_dim:>4}"
+              f"{stats[n]['mean']:>11.1f} ± {stats[n]['std']:<5.1f}")
+    print(f"\nsaved {out / 'tour_tasks.png'} and {out / 'tour_random_returns.png'} "
+          f"in {time.time() - t0:.0f} s")
+    if args.save:
+        from dc_lesson.results import write_result
+        path = write_result(args.save, {"random_returns": stats}, command=_command_line(),
+                            seeds=[args.seed])
+        print(f"wrote {path}")
+    return 0
+
+
+def cmd_bench(args) -> int:
+    from dc_lesson import bench, budget
+    if args.what == "rollout":
+        steps = args.steps or budget.current().bench_steps
+        bench.main(args.tasks or None, n_steps=steps, out=args.out, command=_command_line())
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="dc-lesson", description=__doc__,
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    sub = p.add_subparsers(dest="cmd", required=True)
+    s = sub.add_parser("tasks", help="list the task ports")
+    s.set_defaults(func=cmd_tasks)
+    s = sub.add_parser("tour", help="frames, specs and random returns of the ten tasks")
+    s.add_argument("--out", default="outputs", help="folder for the figures")
+    s.add_argument("--seed", type=int, default=0)
+    s.add_argument("--save", default=None, help="also write the returns to this JSON file")
+    s.set_defaults(func=cmd_tour)
+    s = sub.add_parser("bench", help="benchmarks")
+    s.add_argument("what", choices=["rollout"])
+    s.add_argument("--tasks", nargs="*", default=None)
+    s.add_argument("--steps", type=int, default=None, help="control steps per task")
+    s.add_argument("--out", default=None, help="write the figures to this JSON file")
+    s.set_defaults(func=cmd_bench)
+    return p
+
+
+def main(argv=None) -> int:
+    from dc_lesson import budget, tasks
+    args = build_parser().parse_args(argv)
+    try:
+        budget.current()  # fail early on a wrong DC_LESSON_BUDGET
+        for name in getattr(args, "tasks", None) or []:
+            tasks.check_name(name)
+        return args.func(args)
+    except (budget.BudgetError, tasks.UnknownTaskError) as e:
+        print(f"dc-lesson: {e}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

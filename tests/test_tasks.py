@@ -1,0 +1,176 @@
+"""The ten task ports: specs, rewards, seeding, and the documented behaviour of each task."""
+
+import numpy as np
+import pytest
+
+from dc_lesson import tasks
+from dc_lesson.tasks import reacher
+
+ALL = list(tasks.NAMES)
+
+
+def test_ten_tasks_in_the_papers_order():
+    assert tasks.NAMES == ("cartpole", "reacher1", "reacher2", "reacher4", "hopper", "walker",
+                           "halfcheetah", "halfcheetah2", "ant", "humanoid")
+
+
+@pytest.mark.parametrize("name", ALL)
+def test_spec_matches_the_environment_and_rewards_stay_in_unit_interval(name):
+    spec = tasks.spec(name)
+    env = tasks.load(name, seed=0)
+    obs = env.reset()
+    assert obs.shape == (spec.obs_dim,) and obs.dtype == np.float32
+    assert env.action_low.shape == (spec.act_dim,)
+    np.testing.assert_array_equal(env.action_low, -1)
+    np.testing.assert_array_equal(env.action_high, 1)
+    assert round(spec.control_timestep / env.physics.timestep()) == spec.n_sub_steps
+    assert env.mode_feature().shape == (spec.mode_dim,)
+    assert spec.horizon == 1000
+    rng = np.random.default_rng(0)
+    rewards = []
+    for t in range(spec.horizon):
+        obs, r, done = env.step(rng.uniform(-1, 1, spec.act_dim))
+        rewards.append(r)
+        assert done == (t == spec.horizon - 1)
+        assert np.all(np.isfinite(obs))
+    assert 0.0 <= min(rewards) and max(rewards) <= 1.0
+    with pytest.raises(RuntimeError, match="reset"):
+        env.step(np.zeros(spec.act_dim))
+
+
+@pytest.mark.parametrize("name", ALL)
+def test_same_seed_and_actions_give_identical_trajectories(name):
+    spec = tasks.spec(name)
+    actions = np.random.default_rng(1).uniform(-1, 1, (60, spec.act_dim))
+
+    def run(seed):
+        env = tasks.load(name)
+        out = [env.reset(seed=seed)]
+        rews = []
+        for a in actions:
+            o, r, _ = env.step(a)
+            out.append(o)
+            rews.append(r)
+        return np.stack(out), np.array(rews)
+
+    o1, r1 = run(7)
+    o2, r2 = run(7)
+    np.testing.assert_array_equal(o1, o2)
+    np.testing.assert_array_equal(r1, r2)
+    o3, _ = run(8)
+    assert not np.array_equal(o1[0], o3[0]), "two seeds gave the same initial state"
+
+
+@pytest.mark.parametrize("name", ALL)
+def test_load_seed_reaches_the_tasks_randomness(name):
+    a = tasks.load(name, seed=3).reset()
+    b = tasks.load(name, seed=3).reset()
+    c = tasks.load(name, seed=4).reset()
+    np.testing.assert_array_equal(a, b)
+    assert not np.array_equal(a, c)
+
+
+@pytest.mark.parametrize("name", ["cartpole", "reacher4", "walker", "halfcheetah2", "ant"])
+def test_fast_step_equals_dm_controls_environment(name):
+    """TaskEnv.step makes the same calls as dm_control's Environment.step."""
+    spec = tasks.spec(name)
+    actions = np.random.default_rng(2).uniform(-1, 1, (40, spec.act_dim))
+    ours = tasks.load(name, seed=5)
+    theirs = tasks.load(name, seed=5).dm_env
+    o = ours.reset()
+    ts = theirs.reset()
+    np.testing.assert_array_equal(o, ts.observation["observations"].astype(np.float32))
+    for a in actions:
+        o, r, _ = ours.step(a)
+        ts = theirs.step(a)
+        np.testing.assert_array_equal(o, ts.observation["observations"].astype(np.float32))
+        assert r == ts.reward
+
+
+def test_unknown_task_names_the_valid_ones():
+    with pytest.raises(tasks.UnknownTaskError) as e:
+        tasks.load("nope")
+    for name in tasks.NAMES:
+        assert name in str(e.value)
+    assert isinstance(e.value, KeyError)
+
+
+@pytest.mark.parametrize("bad", [np.zeros(3), np.zeros((1, 2)), [np.nan, 0.0], 0.5])
+def test_wrong_action_gives_a_clear_error(bad):
+    env = tasks.load("reacher1", seed=0)
+    env.reset()
+    with pytest.raises(tasks.ActionError, match="reacher1"):
+        env.step(bad)
+
+
+def test_actions_are_clipped_to_the_bounds_as_mujoco_would():
+    big, clipped = tasks.load("cartpole", seed=0), tasks.load("cartpole", seed=0)
+    big.reset(), clipped.reset()
+    np.testing.assert_array_equal(big.step([5.0])[0], clipped.step([1.0])[0])
+
+
+def _place_fingertip(env, xy):
+    """Sets the arm's joints so that the fingertip is at ``xy`` (two-link inverse kinematics)."""
+    p = env.physics
+    l1 = 0.12
+    l2 = 0.12
+    x, y = xy
+    c2 = (x * x + y * y - l1 * l1 - l2 * l2) / (2 * l1 * l2)
+    q2 = np.arccos(np.clip(c2, -1, 1))
+    q1 = np.arctan2(y, x) - np.arctan2(l2 * np.sin(q2), l1 + l2 * np.cos(q2))
+    p.data.qpos[:] = [q1, q2]
+    p.data.qvel[:] = 0
+    p.forward()
+
+
+@pytest.mark.parametrize("k", [1, 2, 4])
+def test_each_reacher_target_is_rewarded_and_classified(k):
+    env = tasks.load(f"reacher{k}", seed=0)
+    env.reset()
+    targets = reacher.target_positions(k)
+    assert len(env.spec.modes) == (k if k > 1 else 0)
+    for i, xy in enumerate(targets):
+        _place_fingertip(env, xy)
+        np.testing.assert_allclose(env.mode_feature(), xy, atol=1e-6)
+        assert env.task.get_reward(env.physics) == 1.0
+        assert env.task.classify_mode(env.mode_feature()[None])[0] == i
+    _place_fingertip(env, -targets.mean(0) + np.array([0.0, 0.02]) if k > 1 else [0.05, -0.15])
+    assert env.task.get_reward(env.physics) == 0.0
+
+
+def test_reacher_targets_are_not_observed():
+    """Two reachers with different targets observe the same numbers for the same arm state."""
+    a, b = tasks.load("reacher1", seed=0), tasks.load("reacher4", seed=0)
+    np.testing.assert_array_equal(a.reset(), b.reset())
+
+
+@pytest.mark.parametrize("speed", [12.0, -12.0, 5.0, -5.0])
+def test_halfcheetah2_rewards_running_either_way(speed):
+    env2, env1 = tasks.load("halfcheetah2", seed=0), tasks.load("halfcheetah", seed=0)
+    for env in (env2, env1):
+        env.reset()
+        env.physics.data.qvel[0] = speed  # rootx: the torso's forward velocity
+        env.physics.forward()
+    r2 = env2.task.get_reward(env2.physics)
+    r1 = env1.task.get_reward(env1.physics)
+    assert r2 == pytest.approx(min(abs(speed) / 10, 1), abs=0.05)
+    assert r1 == pytest.approx(min(max(speed, 0) / 10, 1), abs=0.05)
+    assert env2.task.classify_mode(env2.mode_feature()[None])[0] == (0 if speed > 0 else 1)
+
+
+def test_ant_is_rewarded_for_running_forward_while_healthy():
+    env = tasks.load("ant", seed=0)
+    env.reset()
+    env.physics.data.qpos[2] = 0.55
+    env.physics.data.qvel[0] = 3.5
+    env.physics.forward()
+    assert env.task.get_reward(env.physics) == pytest.approx(1.0, abs=0.02)
+    env.physics.data.qvel[0] = -1.0
+    env.physics.forward()
+    assert env.task.get_reward(env.physics) == 0.0
+
+
+def test_spec_table_has_a_row_per_task():
+    rows = tasks.spec_table()
+    assert [r["task"] for r in rows] == list(tasks.NAMES)
+    assert all(r["differs from the paper"] for r in rows)
