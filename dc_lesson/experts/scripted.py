@@ -67,21 +67,37 @@ def _as_batch(obs, obs_dim: int, who: str) -> np.ndarray:
 # cartpole: LQR around upright
 # --------------------------------------------------------------------------------------------
 
-def linearise(env: tasks.TaskEnv) -> tuple[np.ndarray, np.ndarray]:
+def _control_step(model, data, state: np.ndarray, ctrl: np.ndarray, n_sub_steps: int):
+    """MuJoCo state (qpos, qvel) after one control step from ``state`` with ``ctrl`` held."""
+    mujoco.mj_resetData(model, data)   # also clears warm starts, so every call is the same
+    data.qpos[:] = state[:model.nq]
+    data.qvel[:] = state[model.nq:]
+    data.ctrl[:] = ctrl
+    mujoco.mj_step(model, data, n_sub_steps)
+    return np.concatenate([data.qpos, data.qvel])
+
+
+def linearise(env: tasks.TaskEnv, eps: float = 1e-6) -> tuple[np.ndarray, np.ndarray]:
     """Discrete-time ``(A, B)`` of one control step around qpos = qvel = ctrl = 0.
 
     The state is MuJoCo's ``(qpos, qvel)`` (cart position, pole angle, their velocities).
+    Central finite differences of ``mj_step`` on the task's own model and integrator (RK4 for
+    cartpole, which ``mujoco.mjd_transitionFD`` does not support).
     """
     model = env.physics.model.ptr
+    if model.nq != model.nv or model.na != 0:   # pragma: no cover - true of cartpole
+        raise ValueError("linearise handles models with hinge and slide joints only")
     data = mujoco.MjData(model)      # a private data, so the environment's state is untouched
-    mujoco.mj_forward(model, data)   # qpos, qvel, ctrl are all zero: upright, at rest
-    nx = 2 * model.nv + model.na
-    A1, B1 = np.zeros((nx, nx)), np.zeros((nx, model.nu))
-    mujoco.mjd_transitionFD(model, data, 1e-6, True, A1, B1, None, None)
-    # A control step holds the action for n_sub_steps physics steps (zero-order hold).
-    A, B = np.eye(nx), np.zeros_like(B1)
-    for _ in range(env.n_sub_steps):
-        A, B = A1 @ A, A1 @ B + B1
+    nx, nu = model.nq + model.nv, model.nu
+    x0, u0 = np.zeros(nx), np.zeros(nu)   # upright, at rest, no force
+
+    def step(x, u):
+        return _control_step(model, data, x, u, env.n_sub_steps)
+
+    A = np.stack([(step(x0 + eps * e, u0) - step(x0 - eps * e, u0)) / (2 * eps)
+                  for e in np.eye(nx)], axis=1)
+    B = np.stack([(step(x0, u0 + eps * e) - step(x0, u0 - eps * e)) / (2 * eps)
+                  for e in np.eye(nu)], axis=1)
     return A, B
 
 
