@@ -1,0 +1,230 @@
+# ---
+# jupyter:
+#   jupytext:
+#     formats: ipynb,py:percent
+#     text_representation:
+#       extension: .py
+#       format_name: percent
+#   kernelspec:
+#     display_name: Python 3
+#     language: python
+#     name: python3
+# ---
+
+# %% [markdown]
+# # 0. A tour of the tasks
+#
+# **Imitation learning** (IL) learns a policy from an expert's demonstrations, with no reward
+# signal: we are shown what a competent agent does in the states it visits, and must act well
+# in the states *we* visit. The paper this book follows, *Distributional Cloning for Stabilized
+# Imitation Learning via ADMM* (DC), starts from the field's two paradigms.
+#
+# **Behaviour cloning (BC)** treats demonstrations as a supervised data set of (state, action)
+# pairs and maximises the likelihood of the expert's actions, $\max_\pi \mathbb{E}_{(s,a)\in
+# \mathcal{D}_E}[\log \pi(a\mid s)]$ (the paper's Eq. 1). It is simple and needs no interaction
+# with the environment, but it only learns what to do in the expert's states: a small error
+# takes the learner to states the expert never showed, where its errors grow. This is
+# *covariate shift*, the subject of chapter 1.
+#
+# **Generative adversarial imitation learning (GAIL)** instead makes the learner's
+# distribution of (state, action) pairs hard to tell from the expert's: a discriminator learns
+# to separate them and its output is the learner's reward for reinforcement learning. Matching
+# distributions fixes covariate shift, but the adversarial game is unstable and may settle on
+# *one* of the expert's behaviours (*mode collapse*), the subject of chapter 2.
+#
+# **DC**, the paper's method, maximises the likelihood of expert *and* learner state-action
+# pairs, split into a state density $P(s)$ fitted by a normalizing flow (SoftFlow, chapter 3)
+# and a policy $\pi(a\mid s)$ trained by a BC step and a reinforcement-learning step with
+# reward $\log P(s)$, whose parameters are averaged ("ADMM", chapter 4).
+#
+# This chapter meets the ten tasks every later chapter runs on: the paper's Gym tasks, ported
+# to DeepMind's [dm_control](https://github.com/google-deepmind/dm_control) on MuJoCo.
+
+# %%
+import matplotlib.pyplot as plt
+import numpy as np
+import pandas as pd
+
+from dc_lesson import budget, plots, render, rollout, tasks, tour
+
+BUDGET = budget.current()
+print(f"budget: {BUDGET.name}")
+if BUDGET.is_smoke:
+    print("smoke budget: every number below comes from a tiny run and means nothing.")
+
+# %% [markdown]
+# ## The ten ports
+#
+# Each port is a dm_control task in the suite's style: an XML model, a `Physics` class with
+# named helpers (`physics.speed()`, `physics.fingertip()`), and a `Task` whose randomness comes
+# only from its own `RandomState`. `tasks.load(name, seed)` builds one; its observations are
+# flat `float32` vectors, every episode lasts exactly 1000 control steps, and each step's reward
+# lies in $[0, 1]$, so a return is on a 0 to 1000 scale in every task.
+#
+# Each task also names a low-dimensional **mode feature**: where the fingertip is, how fast the
+# body moves. Later chapters compare expert and learner *distributions* of this feature, in
+# coverage plots and with the earth mover's distance and KL divergences.
+
+# %%
+table = pd.DataFrame(tasks.spec_table()).set_index("task")
+table[["paper task", "dm_control base", "obs", "act", "horizon", "control dt (s)",
+       "physics steps", "mode feature", "modes"]]
+
+# %%
+names = list(tasks.NAMES)
+fig = plots.gallery(tour.frames(names, height=180, width=240), names)
+plt.show()
+
+# %% [markdown]
+# ## Two tasks with several good behaviours
+#
+# Three ports exist to study **modes**: `reacher2` and `reacher4` reward the fingertip for
+# being inside *any* of 2 or 4 fixed targets, and `halfcheetah2` rewards running speed in
+# *either* direction. The targets and the direction are not in the observation, so which mode
+# an episode takes is a property of the policy, not of the task. An expert that spreads its
+# episodes over all modes is the test of whether an imitation learner keeps them all.
+#
+# Below, left: the `reacher4` arena seen from above with its four targets and where the
+# fingertip of a random policy goes; right: the `halfcheetah2` reward as a function of the
+# forward speed, read from the task itself (setting the velocity and asking for the reward).
+
+# %%
+from dc_lesson.tasks import reacher
+
+random_trajs = rollout.collect("reacher4", rollout.RandomPolicy("reacher4", seed=0),
+                               n_episodes=max(2, BUDGET.tour_episodes // 2), seed=0)
+tips = np.concatenate([t.mode_features for t in random_trajs])
+
+env = tasks.load("halfcheetah2", seed=0)
+env.reset()
+speeds = np.linspace(-14, 14, 57)
+rewards_2 = []
+for v in speeds:
+    env.physics.data.qvel[0] = v          # the torso's forward velocity
+    env.physics.forward()
+    rewards_2.append(env.task.get_reward(env.physics))
+
+fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(10, 4))
+ax1.plot(tips[:, 0], tips[:, 1], ".", ms=1, alpha=0.3, color="grey", label="random fingertip")
+for xy, colour in zip(reacher.target_positions(4), reacher.target_colours(4)):
+    ax1.add_patch(plt.Circle(xy, reacher.TARGET_SIZE + 0.01, color=colour, alpha=0.8))
+ax1.set_aspect("equal")
+ax1.set_xlim(-0.26, 0.26)
+ax1.set_ylim(-0.26, 0.26)
+ax1.set_title("reacher4: targets and a random policy")
+ax1.legend(loc="lower left", fontsize=8)
+ax2.plot(speeds, rewards_2, color="k")
+ax2.set_xlabel("forward speed (m/s)")
+ax2.set_ylabel("reward per step")
+ax2.set_title("halfcheetah2: both directions pay")
+plt.tight_layout()
+plt.show()
+
+# %% [markdown]
+# ## What a random policy scores
+#
+# The floor of every later result. *Scaled return*, the paper's measure, puts the random
+# policy at 0 and the expert at 1. Here each task runs uniformly random actions for a few
+# episodes (`BUDGET.tour_episodes`); the demonstrations' manifest later records the random
+# returns over 50 episodes that scaled returns are computed from.
+
+# %%
+stats = tour.random_returns(names, n_episodes=BUDGET.tour_episodes, seed=0)
+random_table = pd.DataFrame(stats).T[["mean", "std", "n_episodes"]].round(1)
+random_table
+
+# %%
+plots.return_bars(names, random_table["mean"], random_table["std"],
+                  title=f"random policy, {BUDGET.tour_episodes} episodes per task")
+plt.show()
+
+# %% [markdown]
+# A few things to notice. The cartpole starts almost balanced and its reward is smooth (pole
+# up, cart centred), so even random pushes collect a good share of it until the pole falls.
+# The reachers pay only inside a target, so a random arm scores whatever time it happens to
+# spend there, more with more targets. The locomotion tasks pay for speed, which random
+# actions almost never produce.
+#
+# ## A random episode, as a video
+
+# %%
+frames = render.episode_frames("halfcheetah2", rollout.RandomPolicy("halfcheetah2", seed=1),
+                               seed=1, n_steps=BUDGET.video_steps, every=3,
+                               height=120, width=160)
+render.video(frames, fps=15)
+
+# %% [markdown]
+# ## From the paper's Gym tasks to our ports
+#
+# The paper ran OpenAI Gym's MuJoCo tasks; their code is not public. Where dm_control has the
+# same robot we keep dm_control's model and its task (its reward in $[0, 1]$ per step and
+# fixed 1000-step horizon), because that is the setting its models were tuned for and because
+# a competent expert must be reachable on a laptop CPU. The suite has no ant, so `ant` is Gym's
+# ant model written as a dm_control domain with Gym's objective (move forward while healthy)
+# rescaled to $[0, 1]$. No port terminates early: a fallen walker simply stops earning reward,
+# which keeps every trajectory the same length for the density models of later chapters.
+
+# %%
+table[["paper task", "differs from the paper"]].style.set_properties(**{"text-align": "left"})
+
+# %% [markdown]
+# ## Under the hood: one step
+#
+# `env.step(action)` makes exactly the calls of dm_control's own `Environment.step`
+# (`before_step`, `physics.step(n_sub_steps)`, `after_step`, reward, observation) but returns
+# a flat vector instead of a `TimeStep` with an observation dictionary. `env.dm_env` is the
+# genuine dm_control environment on the same physics; a unit test checks that the two give
+# identical trajectories. Actions are clipped to $[-1, 1]$, which is what MuJoCo's actuator
+# limits would do anyway, so the action a trajectory records is the one that was applied,
+# and replaying it from the stored initial state reproduces the episode bit for bit.
+
+# %%
+traj = rollout.collect("walker", rollout.RandomPolicy("walker", seed=2), 1, seed=2,
+                       max_steps=100)[0]
+obs, rew = rollout.replay(traj)
+print("replay identical:", np.array_equal(obs, traj.observations)
+      and np.array_equal(rew, traj.rewards))
+
+# %% [markdown]
+# ## Summary
+#
+# * Ten dm_control tasks stand in for the paper's ten Gym tasks; `tasks.load(name, seed)`
+#   builds any of them, with flat observations, rewards in $[0, 1]$ and 1000-step episodes.
+# * Three of them (`reacher2`, `reacher4`, `halfcheetah2`) have several equally rewarded
+#   behaviours that the policy, not the observation, decides between.
+# * Each task has a mode feature, the low-dimensional summary of where a policy goes that the
+#   book's coverage plots and distances are computed on.
+#
+# ## Exercises
+#
+# 1. Put the `reacher4` fingertip on the green target by setting the two joint angles (the
+#    upper arm and forearm are both 0.12 m long) and check that the reward is 1. A solution
+#    is filled in; change it and rerun the check.
+# 2. What is the `halfcheetah` (one direction) reward at a forward speed of $-5$ m/s, and why
+#    does that make `halfcheetah2` a different task? Check your answer with the environment.
+# 3. Why does a fixed horizon with no early termination matter for an imitation learner that
+#    models the *distribution* of states it visits? (Think of what a fallen walker's states
+#    look like, and how many of them an episode then contains.)
+
+# %%
+# Exercise 1: a solution by two-link inverse kinematics (elbow-up branch).
+env = tasks.load("reacher4", seed=0)
+env.reset()
+green = reacher.target_positions(4)[reacher.target_colours(4).index("green")]
+l1 = l2 = 0.12
+x, y = green
+q2 = np.arccos((x * x + y * y - l1 * l1 - l2 * l2) / (2 * l1 * l2))
+q1 = np.arctan2(y, x) - np.arctan2(l2 * np.sin(q2), l1 + l2 * np.cos(q2))
+env.physics.data.qpos[:] = [q1, q2]
+env.physics.forward()
+assert env.task.get_reward(env.physics) == 1.0, "the fingertip is not in the green target"
+print("fingertip at", env.mode_feature().round(3), "- reward", env.task.get_reward(env.physics))
+
+# %%
+# Exercise 2: the one-direction task pays nothing for running backwards.
+env1 = tasks.load("halfcheetah", seed=0)
+env1.reset()
+env1.physics.data.qvel[0] = -5.0
+env1.physics.forward()
+assert env1.task.get_reward(env1.physics) == 0.0
+print("halfcheetah reward at -5 m/s:", env1.task.get_reward(env1.physics))
