@@ -342,7 +342,7 @@ def ppo_update(policy: GaussianPolicy, value_fn: ValueNetwork, optimizer: torch.
     out = {k: float(np.mean(v)) for k, v in terms.items()}
     out["explained_variance"] = explained_variance(old_values, targets)
     out["epochs"] = epochs
-    out["action_std"] = float(policy.log_std.exp().mean())
+    out["action_std"] = float(policy.log_std.detach().exp().mean())
     return out
 
 

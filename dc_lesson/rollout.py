@@ -34,15 +34,32 @@ def episode_seeds(seed: int, n: int) -> np.ndarray:
 
 
 class RandomPolicy:
-    """Uniformly random actions in the task's bounds, from its own seeded generator."""
+    """Uniformly random actions in the task's bounds.
+
+    Each episode draws from its own generator, seeded by the policy's ``seed`` and the episode
+    seed (through ``reset``), so an episode's actions do not depend on which other episodes
+    run beside it.  Called without ``reset`` it uses one generator seeded by ``seed``.
+    """
 
     def __init__(self, task: str, seed: int = 0):
-        env = _tasks.load(task)
-        self.low, self.high = env.action_low, env.action_high
-        self.rng = np.random.default_rng(seed)
+        self.spec = _tasks.spec(task)
+        self.seed = int(seed)
+        self.rng = np.random.default_rng(self.seed)
+        self.plan = None   # (B, horizon, act_dim) actions drawn at reset, one row per episode
+        self.t = 0
+
+    def reset(self, seeds) -> None:
+        shape = (self.spec.horizon, self.spec.act_dim)
+        self.plan = np.stack([np.random.default_rng([self.seed, int(s) % 2**63])
+                              .uniform(-1, 1, shape) for s in seeds])
+        self.t = 0
 
     def __call__(self, obs: np.ndarray) -> np.ndarray:
-        return self.rng.uniform(self.low, self.high, size=(len(obs), len(self.low)))
+        n = len(obs)
+        if self.plan is not None and len(self.plan) == n and self.t < self.spec.horizon:
+            self.t += 1
+            return self.plan[:, self.t - 1]
+        return self.rng.uniform(-1, 1, size=(n, self.spec.act_dim))
 
 
 def as_batch_policy(policy: Policy) -> Callable[[np.ndarray], np.ndarray]:
@@ -72,7 +89,7 @@ def trajectory_mode(task: _tasks.PortTask, mode_features: np.ndarray) -> int:
 
 def collect(task: str, policy: Policy, n_episodes: int, seed: int = 0, *,
             batch: int = 16, max_steps: int | None = None,
-            progress: bool | None = None) -> list[Trajectory]:
+            progress: bool | None = None, venv=None) -> list[Trajectory]:
     """Runs ``n_episodes`` episodes of ``policy`` on ``task``.
 
     Args:
@@ -83,6 +100,8 @@ def collect(task: str, policy: Policy, n_episodes: int, seed: int = 0, *,
         batch: how many environments run in lockstep.
         max_steps: stop episodes early (for quick looks; the horizon by default).
         progress: show a progress bar (default: when the run is longer than a few seconds).
+        venv: a :class:`~dc_lesson.tasks.VecEnv` of ``task`` to reuse (its size is the batch);
+            algorithms that collect every iteration keep one instead of building it each time.
     """
     spec = _tasks.spec(task)
     if n_episodes < 1:
@@ -90,8 +109,10 @@ def collect(task: str, policy: Policy, n_episodes: int, seed: int = 0, *,
     T = spec.horizon if max_steps is None else min(int(max_steps), spec.horizon)
     act = as_batch_policy(policy)
     seeds = episode_seeds(seed, n_episodes)
-    n_envs = max(1, min(batch, n_episodes))
-    envs = [_tasks.load(task) for _ in range(n_envs)]
+    if venv is None:
+        venv = _tasks.load_vec(task, max(1, min(batch, n_episodes)))
+    elif venv.spec.name != task:
+        raise ValueError(f"venv runs {venv.spec.name!r}, not {task!r}")
     if progress is None:
         progress = n_episodes * T * spec.n_sub_steps > 200_000
     bar = None
@@ -100,35 +121,29 @@ def collect(task: str, policy: Policy, n_episodes: int, seed: int = 0, *,
         bar = tqdm(total=n_episodes * T, desc=f"{task} rollouts", unit="step", leave=False)
 
     out: list[Trajectory] = []
-    for start in range(0, n_episodes, n_envs):
-        chunk = seeds[start:start + n_envs]
+    for start in range(0, n_episodes, venv.n_envs):
+        chunk = seeds[start:start + venv.n_envs]
         B = len(chunk)
         obs = np.zeros((B, T + 1, spec.obs_dim), np.float32)
         acts = np.zeros((B, T, spec.act_dim), np.float32)
         rews = np.zeros((B, T), np.float64)
         feats = np.zeros((B, T + 1, spec.mode_dim), np.float32)
-        states = []
         if hasattr(policy, "reset"):
             policy.reset(np.asarray(chunk))
-        for b, (env, s) in enumerate(zip(envs, chunk)):
-            obs[b, 0] = env.reset(seed=int(s))
-            feats[b, 0] = env.mode_feature()
-            states.append(env.get_state())
+        obs[:, 0], feats[:, 0] = venv.reset(chunk)
+        states = venv.get_states()
         for t in range(T):
             a = np.asarray(act(obs[:, t]), dtype=np.float64).reshape(B, spec.act_dim)
-            for b in range(B):
-                env = envs[b]
-                # Round to float32 before applying, so the stored action replays exactly.
-                acts[b, t] = env.check_action(a[b])
-                obs[b, t + 1], rews[b, t], _ = env.step(acts[b, t])
-                feats[b, t + 1] = env.mode_feature()
+            # Round to float32 before applying, so the stored action replays exactly.
+            acts[:, t] = venv.check_actions(a)
+            obs[:, t + 1], rews[:, t], feats[:, t + 1], _ = venv.step(acts[:, t])
             if bar is not None:
                 bar.update(B)
         for b in range(B):
             out.append(Trajectory(task=task, observations=obs[b], actions=acts[b],
                                   rewards=rews[b], mode_features=feats[b],
                                   initial_state=states[b], seed=int(chunk[b]),
-                                  mode=trajectory_mode(envs[b].task, feats[b])))
+                                  mode=trajectory_mode(venv.task, feats[b])))
     if bar is not None:
         bar.close()
     return out

@@ -24,7 +24,8 @@ from dm_control.suite import humanoid as suite_humanoid
 from dm_control.suite import walker as suite_walker
 
 from dc_lesson.tasks import ant, cartpole, cheetah, hopper, humanoid, reacher, walker
-from dc_lesson.tasks.base import ActionError, PortTask, TaskEnv, TaskSpec
+from dc_lesson.tasks.base import (ActionError, PhysicsDiverged, PortTask, TaskEnv, TaskSpec,
+                                  VecEnv)
 
 @dataclasses.dataclass(frozen=True)
 class Port:
@@ -81,7 +82,7 @@ def spec(name: str) -> TaskSpec:
     return SPECS[check_name(name)]
 
 
-def load(name: str, seed: int | None = None) -> TaskEnv:
+def load(name: str, seed: int | None = None, *, _model=None) -> TaskEnv:
     """Builds the task port ``name``; ``seed`` seeds the task's RandomState (initial states).
 
     Raises :class:`UnknownTaskError` (a ``KeyError``) naming the valid tasks for a wrong name.
@@ -89,9 +90,18 @@ def load(name: str, seed: int | None = None) -> TaskEnv:
     port = _PORTS[check_name(name)]
     if name not in _MODELS:
         _MODELS[name] = port.physics.from_xml_string(*port.model_and_assets()).model
-    # Each environment gets its own copy of the model, so a task may change it safely.
-    physics = port.physics.from_model(_MODELS[name].copy())
+    # Each environment gets its own copy of the model, so a task may change it safely; the
+    # copies of a VecEnv share one (no port changes its model after compiling).
+    physics = port.physics.from_model(_MODELS[name].copy() if _model is None else _model)
     return TaskEnv(port.spec, physics, port.task(random=np.random.RandomState(seed)))
+
+
+def load_vec(name: str, n_envs: int) -> VecEnv:
+    """``n_envs`` copies of task ``name`` stepped in lockstep (see :class:`VecEnv`)."""
+    if n_envs < 1:
+        raise ValueError(f"n_envs must be at least 1, got {n_envs}")
+    model = load(name).physics.model
+    return VecEnv([load(name, _model=model) for _ in range(n_envs)])
 
 
 def spec_table() -> list[dict]:
@@ -104,5 +114,5 @@ def spec_table() -> list[dict]:
             for s in SPECS.values()]
 
 
-__all__ = ["NAMES", "SPECS", "ActionError", "PortTask", "TaskEnv", "TaskSpec",
-           "UnknownTaskError", "check_name", "load", "spec", "spec_table"]
+__all__ = ["NAMES", "SPECS", "ActionError", "PhysicsDiverged", "PortTask", "TaskEnv", "TaskSpec",
+           "UnknownTaskError", "VecEnv", "check_name", "load", "load_vec", "spec", "spec_table"]

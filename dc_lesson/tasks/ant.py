@@ -24,7 +24,7 @@ from dm_control import mujoco
 from dm_control.suite import common
 from dm_control.utils import rewards
 
-from dc_lesson.tasks.base import PortTask, TaskSpec
+from dc_lesson.tasks.base import PortTask, TaskSpec, sensor_slice
 
 RUN_SPEED = 3.0          # m/s for full reward
 HEALTHY_Z = (0.2, 1.0)   # Gym's healthy torso height range
@@ -60,17 +60,19 @@ class Run(PortTask):
         physics.data.qvel[:] = 0.1 * self.random.randn(nv)
         super().initialize_episode(physics)
 
-    def get_observation(self, physics):
-        obs = collections.OrderedDict()
-        obs["position"] = physics.data.qpos[2:].copy()
-        obs["velocity"] = physics.data.qvel.copy()
-        return obs
+    fields = ("qpos", "qvel", "sensordata")
 
-    def get_reward(self, physics):
-        healthy = rewards.tolerance(physics.torso_height(), bounds=HEALTHY_Z, margin=0.1)
-        run = rewards.tolerance(physics.speed(), bounds=(RUN_SPEED, float("inf")),
+    def resolve(self, model):
+        return {"vel": sensor_slice(model, "torso_subtreelinvel").start}
+
+    def batch_observation(self, b):
+        return collections.OrderedDict(position=b.qpos[:, 2:], velocity=b.qvel)
+
+    def batch_reward(self, b):
+        healthy = rewards.tolerance(b.qpos[:, 2], bounds=HEALTHY_Z, margin=0.1)
+        run = rewards.tolerance(b.sensordata[:, b.ids["vel"]], bounds=(RUN_SPEED, float("inf")),
                                 margin=RUN_SPEED, value_at_margin=0, sigmoid="linear")
         return healthy * run
 
-    def mode_feature(self, physics):
-        return np.array([physics.speed()])
+    def batch_mode_feature(self, b):
+        return b.sensordata[:, b.ids["vel"]][:, None]

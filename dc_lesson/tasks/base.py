@@ -20,9 +20,11 @@ checks that the two give identical trajectories.
 
 from __future__ import annotations
 
+import collections
 import dataclasses
 from typing import Callable
 
+import mujoco
 import numpy as np
 from dm_control.rl import control
 from dm_control.suite import base as suite_base
@@ -54,29 +56,117 @@ class TaskSpec:
         return len(self.modes) > 1
 
 
-class PortTask(suite_base.Task):
-    """Mixin for the Task classes of the ports: the low-dimensional mode feature.
+class Batch:
+    """MjData arrays of B environments stacked on a first axis: what a task's batch functions
+    read.  ``ids`` holds the task's named indices (body, geom, sensor addresses)."""
 
-    ``mode_feature`` is what coverage plots, EMD and KL are computed on (fingertip x-y for the
-    reachers, forward velocity for the cheetahs, ...).  ``classify_mode`` maps mode features to
-    the index of the behaviour mode (for multi-mode tasks), or zeros.
+    def __init__(self, datas, fields, ids):
+        self.ids = ids
+        for f in fields:
+            setattr(self, f, np.stack([getattr(d, f) for d in datas]))
+
+
+class PortTask(suite_base.Task):
+    """Base of the ports' Task classes: observations, rewards and mode features computed for a
+    whole batch of environments at once.
+
+    A port lists the MjData ``fields`` it reads and resolves the names it needs into indices
+    once (``resolve``); then ``batch_observation``, ``batch_reward`` and ``batch_mode_feature``
+    compute from a :class:`Batch` with NumPy, for one environment or for many.  dm_control's
+    per-environment ``get_observation`` and ``get_reward`` are these with a batch of one, so
+    the single and the batched paths run the same code and agree to the bit.  For ports of
+    suite tasks a test checks that they equal the suite's own functions.
+
+    The *mode feature* is what coverage plots, EMD and KL are computed on (fingertip x-y for
+    the reachers, forward velocity for the cheetahs, ...); ``classify_mode`` maps mode features
+    to the index of the behaviour mode (for multi-mode tasks), or zeros.
     """
 
-    def mode_feature(self, physics) -> np.ndarray:  # pragma: no cover - abstract
+    fields: tuple[str, ...] = ("qpos", "qvel")
+    _ids = None
+
+    def resolve(self, model) -> dict:
+        """Named indices the batch functions use (override in a port)."""
+        return {}
+
+    def gather(self, datas, model) -> Batch:
+        if self._ids is None:
+            self._ids = self.resolve(model)
+        return Batch(datas, self.fields, self._ids)
+
+    def batch_observation(self, b: Batch) -> dict:  # pragma: no cover - abstract
         raise NotImplementedError
+
+    def batch_reward(self, b: Batch) -> np.ndarray:  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    def batch_mode_feature(self, b: Batch) -> np.ndarray:  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    def outputs(self, datas, model):
+        """(observations (B, obs_dim) float32, rewards (B,) float64, mode features (B, k))."""
+        b = self.gather(datas, model)
+        obs = np.concatenate([v.reshape(len(datas), -1)
+                              for v in self.batch_observation(b).values()], axis=1)
+        return (obs.astype(np.float32), np.asarray(self.batch_reward(b), dtype=np.float64),
+                np.asarray(self.batch_mode_feature(b), dtype=np.float32))
+
+    # dm_control's per-environment interface, as a batch of one.
+    def get_observation(self, physics):
+        b = self.gather([physics.data.ptr], physics.model.ptr)
+        return collections.OrderedDict((k, v[0]) for k, v in self.batch_observation(b).items())
+
+    def get_reward(self, physics):
+        return float(self.batch_reward(self.gather([physics.data.ptr], physics.model.ptr))[0])
+
+    def mode_feature(self, physics) -> np.ndarray:
+        return self.batch_mode_feature(self.gather([physics.data.ptr], physics.model.ptr))[0]
 
     def classify_mode(self, features: np.ndarray) -> np.ndarray:
         features = np.asarray(features)
         return np.zeros(features.shape[:-1], dtype=np.int64)
 
 
-def flatten_observation(obs_dict) -> np.ndarray:
-    """Concatenates an observation dict into one float32 vector, in the dict's order."""
-    return np.concatenate([np.ravel(v) for v in obs_dict.values()]).astype(np.float32)
+def name_id(model, kind: str, name: str) -> int:
+    """Index of a named body / geom / sensor / joint; an error if the model lacks it."""
+    obj = {"body": mujoco.mjtObj.mjOBJ_BODY, "geom": mujoco.mjtObj.mjOBJ_GEOM,
+           "sensor": mujoco.mjtObj.mjOBJ_SENSOR, "joint": mujoco.mjtObj.mjOBJ_JOINT}[kind]
+    i = mujoco.mj_name2id(model, obj, name)
+    if i < 0:
+        raise ValueError(f"the model has no {kind} named {name!r}")
+    return i
+
+
+def sensor_slice(model, name: str) -> slice:
+    i = name_id(model, "sensor", name)
+    adr = model.sensor_adr[i]
+    return slice(adr, adr + model.sensor_dim[i])
+
+
+def step_physics(model, data, n_sub_steps: int) -> None:
+    """``n_sub_steps`` physics steps exactly as dm_control's ``Physics.step`` takes them
+    (legacy stepping: finish the pending ``mj_step1``, step, then ``mj_step1`` so that
+    positions, velocities and sensors are up to date for the observation)."""
+    if model.opt.integrator != mujoco.mjtIntegrator.mjINT_RK4:
+        mujoco.mj_step2(model, data)
+        if n_sub_steps > 1:
+            mujoco.mj_step(model, data, n_sub_steps - 1)
+    else:
+        mujoco.mj_step(model, data, n_sub_steps)
+    mujoco.mj_step1(model, data)
+
+
+class PhysicsDiverged(RuntimeError):
+    """The simulation produced non-finite numbers."""
 
 
 class ActionError(ValueError):
     """An action of the wrong shape or with non-finite entries."""
+
+
+def flatten_observation(obs_dict) -> np.ndarray:
+    """Concatenates an observation dict into one float32 vector, in the dict's order."""
+    return np.concatenate([np.ravel(v) for v in obs_dict.values()]).astype(np.float32)
 
 
 class TaskEnv:
@@ -111,11 +201,16 @@ class TaskEnv:
         """Starts an episode; with ``seed`` the task's RandomState is re-seeded first."""
         if seed is not None:
             self.task.random.seed(int(seed) % (2**32))
+        # As dm_control's Environment.reset: initialise inside reset_context (mj_forward after).
         with self.physics.reset_context():
             self.task.initialize_episode(self.physics)
+        return self._start()
+
+    def _start(self) -> np.ndarray:
         self.t = 0
         self._needs_reset = False
-        return self.observation()
+        obs, _, _ = self.task.outputs([self.physics.data.ptr], self.physics.model.ptr)
+        return obs[0]
 
     def observation(self) -> np.ndarray:
         return flatten_observation(self.task.get_observation(self.physics))
@@ -140,22 +235,23 @@ class TaskEnv:
         a = self.check_action(action)
         # The same sequence as dm_control.rl.control.Environment.step.
         self.task.before_step(a, self.physics)
-        self.physics.step(self.n_sub_steps)
+        step_physics(self.physics.model.ptr, self.physics.data.ptr, self.n_sub_steps)
         self.task.after_step(self.physics)
-        reward = float(self.task.get_reward(self.physics))
-        obs = self.observation()
+        obs, reward, _ = self.task.outputs([self.physics.data.ptr], self.physics.model.ptr)
+        if not np.all(np.isfinite(obs)):
+            raise PhysicsDiverged(f"the {self.spec.name} simulation diverged at step {self.t}")
         self.t += 1
         done = self.t >= self.spec.horizon
         self._needs_reset = done
-        return obs, reward, done
+        return obs[0], float(reward[0]), done
 
     def mode_feature(self) -> np.ndarray:
+        """The mode feature of the current physics state."""
         return np.asarray(self.task.mode_feature(self.physics), dtype=np.float32)
 
     # -- state, for replaying demonstrations -------------------------------------------------
     def get_state(self) -> np.ndarray:
         """The full MuJoCo simulation state (``mjSTATE_INTEGRATION``), float64."""
-        import mujoco
         sig = mujoco.mjtState.mjSTATE_INTEGRATION
         m, d = self.physics.model.ptr, self.physics.data.ptr
         state = np.empty(mujoco.mj_stateSize(m, sig))
@@ -164,7 +260,6 @@ class TaskEnv:
 
     def set_state(self, state: np.ndarray) -> np.ndarray:
         """Restores a state from :meth:`get_state` at the start of an episode; returns the obs."""
-        import mujoco
         sig = mujoco.mjtState.mjSTATE_INTEGRATION
         m, d = self.physics.model.ptr, self.physics.data.ptr
         state = np.asarray(state, dtype=np.float64)
@@ -173,9 +268,7 @@ class TaskEnv:
         mujoco.mj_setState(m, d, state, sig)
         # dm_control keeps position-dependent quantities up to date after every step.
         mujoco.mj_forward(m, d)
-        self.t = 0
-        self._needs_reset = False
-        return self.observation()
+        return self._start()
 
     def render(self, height: int = 240, width: int = 320, camera_id=None) -> np.ndarray:
         cam = self.default_camera if camera_id is None else camera_id
@@ -184,6 +277,74 @@ class TaskEnv:
     @property
     def default_camera(self):
         return getattr(self.task, "camera", 0)
+
+
+class VecEnv:
+    """``n_envs`` copies of a task stepped in lockstep, for rollouts and RL.
+
+    Each copy has its own MuJoCo data; one ``step`` sets every copy's control, takes its
+    physics steps (exactly as :class:`TaskEnv`), then computes all observations, rewards and
+    mode features in one batched NumPy pass.  All copies share the fixed horizon, so they start
+    and end their episodes together.  ``reset(seeds)`` may start fewer episodes than there are
+    copies; the rest sit idle.
+    """
+
+    def __init__(self, envs: list[TaskEnv]):
+        if not envs:
+            raise ValueError("a VecEnv needs at least one environment")
+        self.envs = envs
+        self.spec = envs[0].spec
+        self.task = envs[0].task
+        self.action_low, self.action_high = envs[0].action_low, envs[0].action_high
+        self._models = [e.physics.model.ptr for e in envs]
+        self._datas = [e.physics.data.ptr for e in envs]
+        self.n_active = 0
+        self.t = 0
+
+    @property
+    def n_envs(self) -> int:
+        return len(self.envs)
+
+    def reset(self, seeds) -> tuple[np.ndarray, np.ndarray]:
+        """Starts ``len(seeds)`` episodes: returns (observations, mode features)."""
+        seeds = np.asarray(seeds).reshape(-1)
+        if not 1 <= len(seeds) <= self.n_envs:
+            raise ValueError(f"reset takes 1 to {self.n_envs} seeds, got {len(seeds)}")
+        for env, seed in zip(self.envs, seeds):
+            env.reset(seed=int(seed))
+        self.n_active = len(seeds)
+        self.t = 0
+        obs, _, feat = self.task.outputs(self._datas[:self.n_active], self._models[0])
+        return obs, feat
+
+    def get_states(self) -> np.ndarray:
+        return np.stack([e.get_state() for e in self.envs[:self.n_active]])
+
+    def check_actions(self, actions) -> np.ndarray:
+        a = np.asarray(actions, dtype=np.float64)
+        shape = (self.n_active, self.spec.act_dim)
+        if a.shape != shape:
+            raise ActionError(f"task {self.spec.name!r} with {self.n_active} running episodes "
+                              f"takes actions of shape {shape}, got shape {a.shape}")
+        if not np.all(np.isfinite(a)):
+            raise ActionError(f"task {self.spec.name!r} got non-finite actions")
+        return np.clip(a, self.action_low, self.action_high)
+
+    def step(self, actions) -> tuple[np.ndarray, np.ndarray, np.ndarray, bool]:
+        """One control step of every running episode: (observations, rewards, mode features,
+        done); ``done`` is True at the horizon, after which ``reset`` is needed."""
+        if self.n_active == 0 or self.t >= self.spec.horizon:
+            raise RuntimeError("call reset() before step(): the episodes are over or not started")
+        a = self.check_actions(actions)
+        n = self.spec.n_sub_steps
+        for m, d, ai in zip(self._models, self._datas[:self.n_active], a):
+            d.ctrl[:] = ai          # what Task.before_step does (set_control)
+            step_physics(m, d, n)
+        obs, rew, feat = self.task.outputs(self._datas[:self.n_active], self._models[0])
+        if not np.all(np.isfinite(obs)):
+            raise PhysicsDiverged(f"the {self.spec.name} simulation diverged at step {self.t}")
+        self.t += 1
+        return obs, rew, feat, self.t >= self.spec.horizon
 
 
 Factory = Callable[[np.random.RandomState], tuple]

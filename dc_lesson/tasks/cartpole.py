@@ -8,8 +8,11 @@ well above zero (the pole falls slowly from near-vertical).
 
 from __future__ import annotations
 
+import collections
+
 import numpy as np
 from dm_control.suite import cartpole as suite_cartpole
+from dm_control.utils import rewards
 
 from dc_lesson.tasks.base import PortTask, TaskSpec
 
@@ -21,17 +24,40 @@ SPEC = TaskSpec(
             "falls; 1000 steps instead of 200; dm_control's smooth reward")
 
 
+_XZ, _ZZ = 2, 8   # entries of a flattened rotation matrix (dm_control's 'xz' and 'zz')
+_POLE = 2         # body index of the pole (world, cart, pole)
+
+
 class Physics(suite_cartpole.Physics):
     def pole_angle(self) -> float:
         """Pole angle from vertical in radians (0 is upright)."""
-        return float(np.arctan2(self.data.xmat[2, 2], self.data.xmat[2, 8]))
+        return float(np.arctan2(self.data.xmat[_POLE, _XZ], self.data.xmat[_POLE, _ZZ]))
 
 
-class Balance(suite_cartpole.Balance, PortTask):
+class Balance(PortTask, suite_cartpole.Balance):
+    """The suite's smooth balance task, computed for a batch of environments."""
+
     camera = "fixed"
+    fields = ("qpos", "qvel", "xmat", "ctrl")
 
     def __init__(self, random=None):
         super().__init__(swing_up=False, sparse=False, random=random)
 
-    def mode_feature(self, physics):
-        return np.array([physics.cart_position(), physics.pole_angle()])
+    def batch_observation(self, b):
+        position = np.concatenate([b.qpos[:, :1], b.xmat[:, _POLE, [_ZZ, _XZ]]], axis=1)
+        return collections.OrderedDict(position=position, velocity=b.qvel)
+
+    def batch_reward(self, b):
+        # Balance._get_reward(sparse=False), term by term and in the same order.
+        upright = (b.xmat[:, _POLE:, _ZZ] + 1) / 2
+        centered = (1 + rewards.tolerance(b.qpos[:, 0], margin=2)) / 2
+        small_control = rewards.tolerance(b.ctrl, margin=1, value_at_margin=0,
+                                          sigmoid="quadratic")[:, 0]
+        small_control = (4 + small_control) / 5
+        small_velocity = rewards.tolerance(b.qvel[:, 1:], margin=5).min(axis=1)
+        small_velocity = (1 + small_velocity) / 2
+        return upright.mean(axis=1) * small_control * small_velocity * centered
+
+    def batch_mode_feature(self, b):
+        angle = np.arctan2(b.xmat[:, _POLE, _XZ], b.xmat[:, _POLE, _ZZ])
+        return np.stack([b.qpos[:, 0], angle], axis=1)

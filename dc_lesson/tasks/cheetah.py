@@ -9,11 +9,13 @@ observation, so which way an episode runs is a property of the policy (two behav
 
 from __future__ import annotations
 
+import collections
+
 import numpy as np
 from dm_control.suite import cheetah as suite_cheetah
 from dm_control.utils import rewards
 
-from dc_lesson.tasks.base import PortTask, TaskSpec
+from dc_lesson.tasks.base import PortTask, TaskSpec, sensor_slice
 
 _RUN_SPEED = suite_cheetah._RUN_SPEED  # 10 m/s
 
@@ -37,18 +39,34 @@ class Physics(suite_cheetah.Physics):
     pass
 
 
-class Run(suite_cheetah.Cheetah, PortTask):
-    camera = "side"
+class Run(PortTask, suite_cheetah.Cheetah):
+    """The suite's run task, computed for a batch of environments."""
 
-    def mode_feature(self, physics):
-        return np.array([physics.speed()])
+    camera = "side"
+    fields = ("qpos", "qvel", "sensordata")
+
+    def resolve(self, model):
+        return {"vel": sensor_slice(model, "torso_subtreelinvel").start}
+
+    def batch_observation(self, b):
+        return collections.OrderedDict(position=b.qpos[:, 1:], velocity=b.qvel)
+
+    def _speed(self, b):
+        return b.sensordata[:, b.ids["vel"]]
+
+    def batch_reward(self, b):
+        return rewards.tolerance(self._speed(b), bounds=(_RUN_SPEED, float("inf")),
+                                 margin=_RUN_SPEED, value_at_margin=0, sigmoid="linear")
+
+    def batch_mode_feature(self, b):
+        return self._speed(b)[:, None]
 
 
 class RunEitherWay(Run):
     """Rewards running speed in either direction."""
 
-    def get_reward(self, physics):
-        return rewards.tolerance(abs(physics.speed()), bounds=(_RUN_SPEED, float("inf")),
+    def batch_reward(self, b):
+        return rewards.tolerance(np.abs(self._speed(b)), bounds=(_RUN_SPEED, float("inf")),
                                  margin=_RUN_SPEED, value_at_margin=0, sigmoid="linear")
 
     def classify_mode(self, features):

@@ -27,9 +27,10 @@ import collections
 
 import numpy as np
 from dm_control.suite import reacher as suite_reacher
+from dm_control.suite.utils import randomizers
 from dm_control.utils import rewards
 
-from dc_lesson.tasks.base import PortTask, TaskSpec
+from dc_lesson.tasks.base import PortTask, TaskSpec, name_id
 
 TARGET_RADIUS = 0.16   # distance of each target from the shoulder (m); the reach is 0.24
 TARGET_SIZE = 0.03     # radius of a target sphere (m)
@@ -82,50 +83,46 @@ class Physics(suite_reacher.Physics):
         """x-y position of the fingertip."""
         return self.named.data.geom_xpos["finger", :2].copy()
 
-    def finger_to_targets_dist(self) -> np.ndarray:
-        """Distance from the fingertip to each target centre."""
-        targets = self.data.geom_xpos[self._target_ids, :2]
-        return np.linalg.norm(targets - self.fingertip(), axis=1)
-
-    @property
-    def _target_ids(self):
-        ids = getattr(self, "_cached_target_ids", None)
-        if ids is None:
-            names = [self.model.id2name(i, "geom") for i in range(self.model.ngeom)]
-            ids = [i for i, n in enumerate(names) if n.startswith("target")]
-            self._cached_target_ids = ids
-        return ids
-
 
 class ReachAny(PortTask):
     """Reach any of the fixed targets and stay there."""
 
     camera = "fixed"
+    fields = ("qpos", "qvel", "geom_xpos")
 
     def __init__(self, n_targets: int, random=None):
         self.n_targets = n_targets
         self.targets = target_positions(n_targets)
         super().__init__(random=random)
 
+    def resolve(self, model):
+        finger = name_id(model, "geom", "finger")
+        return {"finger": finger,
+                "targets": [name_id(model, "geom", f"target{k}") for k in range(self.n_targets)],
+                "radii": TARGET_SIZE + float(model.geom_size[finger, 0])}
+
     def initialize_episode(self, physics):
-        from dm_control.suite.utils import randomizers
         randomizers.randomize_limited_and_rotational_joints(physics, self.random)
         super().initialize_episode(physics)
 
-    def get_observation(self, physics):
-        q = physics.data.qpos
-        obs = collections.OrderedDict()
-        obs["position"] = np.array([np.cos(q[0]), np.sin(q[0]), np.cos(q[1]), np.sin(q[1])])
-        obs["fingertip"] = physics.fingertip()
-        obs["velocity"] = physics.data.qvel.copy()
-        return obs
+    def _fingertip(self, b):
+        return b.geom_xpos[:, b.ids["finger"], :2]
 
-    def get_reward(self, physics):
-        radii = TARGET_SIZE + physics.named.model.geom_size["finger", 0]
-        return float(np.max(rewards.tolerance(physics.finger_to_targets_dist(), (0, radii))))
+    def batch_observation(self, b):
+        q = b.qpos
+        position = np.stack([np.cos(q[:, 0]), np.sin(q[:, 0]), np.cos(q[:, 1]), np.sin(q[:, 1])],
+                            axis=1)
+        return collections.OrderedDict(position=position, fingertip=self._fingertip(b),
+                                       velocity=b.qvel)
 
-    def mode_feature(self, physics):
-        return physics.fingertip()
+    def batch_reward(self, b):
+        # 1 inside any target (centre distance within target + finger radius), as the suite.
+        to_targets = b.geom_xpos[:, b.ids["targets"], :2] - self._fingertip(b)[:, None]
+        dist = np.linalg.norm(to_targets, axis=2)
+        return rewards.tolerance(dist, (0, b.ids["radii"])).max(axis=1)
+
+    def batch_mode_feature(self, b):
+        return self._fingertip(b)
 
     def classify_mode(self, features):
         # Index of the nearest target to each fingertip position.

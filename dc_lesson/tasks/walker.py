@@ -6,10 +6,13 @@ Reward = stand term (torso height and uprightness) times a move term (forward sp
 
 from __future__ import annotations
 
+import collections
+
 import numpy as np
 from dm_control.suite import walker as suite_walker
+from dm_control.utils import rewards
 
-from dc_lesson.tasks.base import PortTask, TaskSpec
+from dc_lesson.tasks.base import PortTask, TaskSpec, name_id, sensor_slice
 
 SPEC = TaskSpec(
     name="walker", paper_task="Walker2d-v2", base="suite walker, walk task",
@@ -23,11 +26,38 @@ class Physics(suite_walker.Physics):
     pass
 
 
-class Walk(suite_walker.PlanarWalker, PortTask):
+_XX, _XZ, _ZZ = 0, 2, 8   # entries of a flattened rotation matrix
+
+
+class Walk(PortTask, suite_walker.PlanarWalker):
+    """The suite's walk task, computed for a batch of environments."""
+
     camera = "side"
+    fields = ("qvel", "xpos", "xmat", "sensordata")
 
     def __init__(self, random=None):
         super().__init__(move_speed=suite_walker._WALK_SPEED, random=random)
 
-    def mode_feature(self, physics):
-        return np.array([physics.torso_height(), physics.horizontal_velocity()])
+    def resolve(self, model):
+        return {"torso": name_id(model, "body", "torso"),
+                "vel": sensor_slice(model, "torso_subtreelinvel").start}
+
+    def batch_observation(self, b):
+        orientations = b.xmat[:, 1:][:, :, [_XX, _XZ]].reshape(len(b.qvel), -1)
+        return collections.OrderedDict(orientations=orientations,
+                                       height=b.xpos[:, b.ids["torso"], 2], velocity=b.qvel)
+
+    def batch_reward(self, b):
+        height = b.xpos[:, b.ids["torso"], 2]
+        standing = rewards.tolerance(height, bounds=(suite_walker._STAND_HEIGHT, float("inf")),
+                                     margin=suite_walker._STAND_HEIGHT / 2)
+        upright = (1 + b.xmat[:, b.ids["torso"], _ZZ]) / 2
+        stand_reward = (3 * standing + upright) / 4
+        speed = self._move_speed
+        move_reward = rewards.tolerance(b.sensordata[:, b.ids["vel"]],
+                                        bounds=(speed, float("inf")), margin=speed / 2,
+                                        value_at_margin=0.5, sigmoid="linear")
+        return stand_reward * (5 * move_reward + 1) / 6
+
+    def batch_mode_feature(self, b):
+        return np.stack([b.xpos[:, b.ids["torso"], 2], b.sensordata[:, b.ids["vel"]]], axis=1)
