@@ -33,8 +33,8 @@ class Budget:
 
 PRESETS: dict[str, Budget] = {
     "smoke": Budget("smoke", tour_episodes=2, video_steps=20, bench_steps=300),
-    "lesson": Budget("lesson", tour_episodes=10, video_steps=150, bench_steps=3000),
-    "paper": Budget("paper", tour_episodes=50, video_steps=400, bench_steps=20000),
+    "lesson": Budget("lesson", tour_episodes=10, video_steps=150, bench_steps=8000),
+    "paper": Budget("paper", tour_episodes=50, video_steps=400, bench_steps=32000),
 }
 
 

@@ -2,6 +2,7 @@
 
     dc-lesson tour                 frames of the ten tasks, their specs and random returns
     dc-lesson tasks                the spec table
+    dc-lesson demos --task NAME    roll out the expert of NAME into data/demos/
     dc-lesson bench rollout        rollout throughput against raw MuJoCo stepping
 
 Sizes follow ``DC_LESSON_BUDGET`` (smoke | lesson | paper); see ``dc_lesson.budget``.
@@ -56,6 +57,18 @@ def cmd_tour(args) -> int:
     return 0
 
 
+def cmd_demos(args) -> int:
+    from dc_lesson import demos
+    for name in args.task:
+        entry = demos.make_demos(name, command=_command_line())
+        e, r = entry["expert_return"], entry["random_return"]
+        shares = ", ".join(f"{k} {v:.2f}" for k, v in entry["demo_mode_shares"].items())
+        print(f"{name}: {entry['n_trajectories']} demonstrations; expert {e['mean']:.1f} ± "
+              f"{e['std']:.1f}, random {r['mean']:.1f} ± {r['std']:.1f} over "
+              f"{e['n_episodes']} episodes; modes: {shares}; {entry['wall_seconds']:.0f} s")
+    return 0
+
+
 def cmd_bench(args) -> int:
     from dc_lesson import bench, budget
     if args.what == "rollout":
@@ -75,6 +88,9 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--seed", type=int, default=0)
     s.add_argument("--save", default=None, help="also write the returns to this JSON file")
     s.set_defaults(func=cmd_tour)
+    s = sub.add_parser("demos", help="roll out a task's expert into data/demos/")
+    s.add_argument("--task", nargs="+", required=True)
+    s.set_defaults(func=cmd_demos)
     s = sub.add_parser("bench", help="benchmarks")
     s.add_argument("what", choices=["rollout"])
     s.add_argument("--tasks", nargs="*", default=None)
@@ -89,7 +105,7 @@ def main(argv=None) -> int:
     args = build_parser().parse_args(argv)
     try:
         budget.current()  # fail early on a wrong DC_LESSON_BUDGET
-        for name in getattr(args, "tasks", None) or []:
+        for name in (getattr(args, "tasks", None) or []) + (getattr(args, "task", None) or []):
             tasks.check_name(name)
         return args.func(args)
     except (budget.BudgetError, tasks.UnknownTaskError) as e:

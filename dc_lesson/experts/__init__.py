@@ -3,3 +3,21 @@
 ``scripted`` holds hand-designed controllers (no learning) for the tasks where one is easy to
 write: an LQR for ``cartpole`` and inverse kinematics + PD for the reachers.
 """
+
+from __future__ import annotations
+
+
+def load_expert(task: str):
+    """The expert of ``task`` as a batch policy, and a JSON-able description of it.
+
+    Scripted controllers for ``cartpole`` and the reachers; network policies trained with PPO
+    (``dc-lesson expert train``) for the others, read from ``data/experts/``.
+    """
+    from dc_lesson import tasks
+    from dc_lesson.experts import scripted
+    tasks.check_name(task)
+    if task in scripted.SCRIPTED_TASKS:
+        policy = scripted.expert_for(task)
+        return policy, scripted.describe(task)
+    from dc_lesson.experts import trained
+    return trained.load_trained_expert(task)

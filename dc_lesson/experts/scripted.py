@@ -314,6 +314,23 @@ def expert_for(task: str):
                      f"{', '.join(SCRIPTED_TASKS)}")
 
 
-__all__ = ["SCRIPTED_TASKS", "MODE_CHOICES", "CartpoleLQR", "ReacherExpert", "expert_for",
+def describe(task: str) -> dict:
+    """What the scripted expert of ``task`` is, for the demonstrations' manifest."""
+    if task == "cartpole":
+        return {"kind": "scripted", "name": "CartpoleLQR",
+                "method": "discrete LQR on a finite-difference linearisation about upright; "
+                          "cost weights from the second-order expansion of the task's reward",
+                "mode_choice": None}
+    if task in ("reacher1", "reacher2", "reacher4"):
+        return {"kind": "scripted", "name": "ReacherExpert",
+                "method": "two-link inverse kinematics to the chosen target, PD control on "
+                          "the joint angles", "gains": {"kp": list(map(float, ReacherExpert.KP)),
+                                                        "kd": list(map(float, ReacherExpert.KD))},
+                "mode_choice": "coin: the target is drawn uniformly per episode from the "
+                               "episode seed, independent of the initial state"}
+    raise ValueError(f"no scripted expert for task {task!r}")
+
+
+__all__ = ["SCRIPTED_TASKS", "describe", "MODE_CHOICES", "CartpoleLQR", "ReacherExpert", "expert_for",
            "linearise", "solve_dlqr", "two_link_ik", "joint_goal", "coin_flip_targets",
            "nearest_targets", "pd_action", "arm_geometry", "wrap_angle"]

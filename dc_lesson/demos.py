@@ -1,0 +1,101 @@
+"""Making the demonstrations: ``dc-lesson demos --task NAME``.
+
+For a task it rolls out the task's expert (``dc_lesson.experts.load_expert``) for
+``N_DEMOS`` = 25 fixed-horizon episodes (so the paper's subsets of 4, 11, 18 and 25 exist), then
+measures the expert and a uniformly random policy over ``N_EVAL`` = 50 further episodes each:
+the two ends of the scaled return (expert 1, random 0).  It writes ``data/demos/NAME.npz`` and
+the task's entry in ``data/demos/manifest.json``: sha256, returns, mode shares, seeds, horizon,
+and the command and git revision that made them.
+
+Seeds: demonstrations use episode seeds from ``DEMO_SEED``, the expert's evaluation from
+``EXPERT_EVAL_SEED`` and the random policy's from ``RANDOM_EVAL_SEED``, so the three sets of
+episodes start from different initial states.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import datetime
+import fcntl
+import json
+import time
+
+import numpy as np
+
+from dc_lesson import data, rollout
+from dc_lesson import tasks as _tasks
+from dc_lesson.results import atomic_write_text, git_revision
+
+N_DEMOS = 25
+N_EVAL = 50
+DEMO_SEED, EXPERT_EVAL_SEED, RANDOM_EVAL_SEED = 0, 1, 2
+
+
+def _stats(returns) -> dict:
+    r = np.asarray(returns, dtype=np.float64)
+    return {"mean": float(r.mean()), "std": float(r.std(ddof=1)), "min": float(r.min()),
+            "max": float(r.max()), "n_episodes": int(len(r))}
+
+
+def mode_shares(task: str, trajectories) -> dict[str, float]:
+    """Fraction of episodes that took each mode (names from the task's spec)."""
+    spec = _tasks.spec(task)
+    names = spec.modes or ("single",)
+    counts = np.bincount([t.mode for t in trajectories], minlength=len(names))
+    return {name: float(c / len(trajectories)) for name, c in zip(names, counts)}
+
+
+@contextlib.contextmanager
+def _locked(directory):
+    """Serialises manifest updates of demos jobs running side by side."""
+    directory.mkdir(parents=True, exist_ok=True)
+    with open(directory / ".manifest.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(lock, fcntl.LOCK_UN)
+
+
+def make_demos(task: str, command: str = "", directory=None, n_demos: int = N_DEMOS,
+               n_eval: int = N_EVAL, progress: bool = True) -> dict:
+    """Generates, stores and registers the demonstrations of ``task``; returns its entry."""
+    from dc_lesson.experts import load_expert
+    _tasks.check_name(task)
+    directory = data.DEMOS_DIR if directory is None else directory
+    import pathlib
+    directory = pathlib.Path(directory)
+    expert, info = load_expert(task)
+    t0 = time.time()
+    demos = rollout.collect(task, expert, n_demos, seed=DEMO_SEED, progress=progress)
+    expert_eval = rollout.collect(task, expert, n_eval, seed=EXPERT_EVAL_SEED, progress=progress)
+    random_eval = rollout.collect(task, rollout.RandomPolicy(task, seed=RANDOM_EVAL_SEED), n_eval,
+                                  seed=RANDOM_EVAL_SEED, progress=progress)
+    path = directory / f"{task}.npz"
+    digest = data.save_demos(demos, path)
+    spec = _tasks.spec(task)
+    entry = {
+        "file": path.name, "sha256": digest, "task": task, "n_trajectories": len(demos),
+        "horizon": spec.horizon, "obs_dim": spec.obs_dim, "act_dim": spec.act_dim,
+        "mode_feature": list(spec.mode_feature_names),
+        "expert": info,
+        "demo_return": _stats(rollout.returns(demos)),
+        "expert_return": _stats(rollout.returns(expert_eval)),
+        "random_return": _stats(rollout.returns(random_eval)),
+        "demo_mode_shares": mode_shares(task, demos),
+        "expert_mode_shares": mode_shares(task, expert_eval),
+        "seeds": {"demos": DEMO_SEED, "expert_eval": EXPERT_EVAL_SEED,
+                  "random_eval": RANDOM_EVAL_SEED, "random_policy": RANDOM_EVAL_SEED},
+        "command": command or f"dc-lesson demos --task {task}",
+        "revision": git_revision(),
+        "time": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+        "wall_seconds": round(time.time() - t0, 1),
+    }
+    with _locked(directory):
+        manifest = data.read_manifest(directory)
+        manifest["format"] = data.DEMO_FORMAT
+        manifest["tasks"][task] = entry
+        manifest["tasks"] = dict(sorted(manifest["tasks"].items(),
+                                        key=lambda kv: _tasks.NAMES.index(kv[0])))
+        atomic_write_text(directory / "manifest.json", json.dumps(manifest, indent=1) + "\n")
+    return entry

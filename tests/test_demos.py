@@ -1,0 +1,122 @@
+"""The shipped demonstrations: integrity, exact replay, expert returns, and clear errors."""
+
+import json
+import pathlib
+import shutil
+
+import numpy as np
+import pytest
+
+from dc_lesson import data, rollout, tasks
+from dc_lesson.experts import load_expert
+
+MANIFEST = data.read_manifest()
+SHIPPED = list(MANIFEST["tasks"])
+ROOT = pathlib.Path(__file__).resolve().parent.parent
+
+
+def test_demonstrations_are_shipped_and_data_stays_small():
+    assert SHIPPED, "no demonstrations in data/demos"
+    size = sum(p.stat().st_size for p in (ROOT / "data").rglob("*") if p.is_file())
+    assert size < 60e6, f"data/ holds {size / 1e6:.1f} MB"
+
+
+@pytest.mark.parametrize("task", SHIPPED)
+def test_shipped_demos_load_match_their_manifest_and_replay_exactly(task):
+    demos = data.load_demos(task)
+    entry = demos.manifest
+    spec = tasks.spec(task)
+    assert len(demos) == entry["n_trajectories"] == 25
+    assert entry["horizon"] == spec.horizon
+    for t in demos.trajectories:
+        assert len(t) == spec.horizon
+        assert t.observations.shape == (spec.horizon + 1, spec.obs_dim)
+    np.testing.assert_allclose(demos.returns.mean(), entry["demo_return"]["mean"])
+    shares = np.bincount(demos.modes, minlength=max(1, len(spec.modes))) / len(demos)
+    np.testing.assert_allclose(shares, list(entry["demo_mode_shares"].values()))
+    # MuJoCo is deterministic on one machine: replaying stored actions from the stored state
+    # gives the stored observations and rewards bit for bit.
+    for i in (0, len(demos) - 1):
+        obs, rews = rollout.replay(demos.trajectories[i])
+        np.testing.assert_array_equal(obs, demos.trajectories[i].observations)
+        np.testing.assert_array_equal(rews, demos.trajectories[i].rewards)
+
+
+@pytest.mark.parametrize("task", SHIPPED)
+def test_expert_rerun_falls_within_the_manifests_spread(task):
+    entry = MANIFEST["tasks"][task]
+    expert, _ = load_expert(task)
+    fresh = rollout.returns(rollout.collect(task, expert, 4, seed=12345))
+    lo = entry["expert_return"]["mean"] - 4 * entry["expert_return"]["std"] - 1
+    hi = entry["expert_return"]["mean"] + 4 * entry["expert_return"]["std"] + 1
+    assert lo <= fresh.mean() <= hi
+    assert entry["expert_return"]["mean"] > entry["random_return"]["mean"]
+
+
+def test_subsets_are_nested_or_seeded():
+    task = SHIPPED[0]
+    four = data.load_demos(task, n_trajectories=4)
+    eleven = data.load_demos(task, n_trajectories=11)
+    for a, b in zip(four.trajectories, eleven.trajectories):
+        np.testing.assert_array_equal(a.actions, b.actions)
+    s1 = data.load_demos(task, n_trajectories=4, seed=3)
+    s2 = data.load_demos(task, n_trajectories=4, seed=3)
+    assert [t.seed for t in s1.trajectories] == [t.seed for t in s2.trajectories]
+    with pytest.raises(ValueError, match="asked for 26"):
+        data.load_demos(task, n_trajectories=26)
+
+
+@pytest.fixture
+def demo_copy(tmp_path):
+    task = SHIPPED[0]
+    shutil.copy(data.DEMOS_DIR / "manifest.json", tmp_path / "manifest.json")
+    shutil.copy(data.DEMOS_DIR / f"{task}.npz", tmp_path / f"{task}.npz")
+    return task, tmp_path
+
+
+def test_a_corrupted_file_says_what_is_wrong_and_how_to_regenerate(demo_copy):
+    task, d = demo_copy
+    raw = bytearray((d / f"{task}.npz").read_bytes())
+    raw[len(raw) // 2] ^= 0xFF
+    (d / f"{task}.npz").write_bytes(bytes(raw))
+    with pytest.raises(data.DemoError, match=rf"sha256.*dc-lesson demos --task {task}"):
+        data.load_demos(task, directory=d)
+    # Even without the checksum, reading the damaged file fails clearly, not deep in NumPy.
+    with pytest.raises(data.DemoError, match="not a readable demonstration file|inconsistent"):
+        data.read_demo_file(d / f"{task}.npz", task)
+
+
+def test_a_file_of_another_task_is_refused(demo_copy):
+    task, d = demo_copy
+    other = next(n for n in tasks.NAMES if n != task)
+    shutil.copy(d / f"{task}.npz", d / f"{other}.npz")
+    manifest = json.loads((d / "manifest.json").read_text())
+    manifest["tasks"][other] = dict(manifest["tasks"][task], file=f"{other}.npz")
+    (d / "manifest.json").write_text(json.dumps(manifest))
+    with pytest.raises(data.DemoError, match=rf"holds demonstrations of '{task}', not of "
+                                             rf"'{other}'.*dc-lesson demos --task {other}"):
+        data.load_demos(other, directory=d)
+
+
+def test_missing_and_foreign_files(tmp_path):
+    with pytest.raises(data.DemoError, match="missing"):
+        data.read_demo_file(tmp_path / "reacher1.npz", "reacher1")
+    np.savez(tmp_path / "x.npz", a=np.zeros(3))
+    with pytest.raises(data.DemoError, match="not a dc-lesson demonstration file"):
+        data.read_demo_file(tmp_path / "x.npz", "reacher1")
+    (tmp_path / "manifest.json").write_text("{not json")
+    with pytest.raises(data.DemoError, match="not valid JSON"):
+        data.load_demos("reacher1", directory=tmp_path)
+    with pytest.raises(tasks.UnknownTaskError):
+        data.load_demos("nope")
+
+
+def test_save_and_read_round_trip(tmp_path):
+    trajs = rollout.collect("reacher2", rollout.RandomPolicy("reacher2"), 3, seed=5,
+                            max_steps=20)
+    data.save_demos(trajs, tmp_path / "reacher2.npz")
+    back = data.read_demo_file(tmp_path / "reacher2.npz", "reacher2")
+    for a, b in zip(trajs, back):
+        for field in ("observations", "actions", "rewards", "mode_features", "initial_state"):
+            np.testing.assert_array_equal(getattr(a, field), getattr(b, field))
+        assert (a.seed, a.mode) == (b.seed, b.mode)
