@@ -1,8 +1,11 @@
 """dc-lesson: the library behind the textbook on Distributional Cloning (DC).
 
-Modules: ``tasks`` (the ten dm_control ports), ``data`` (typed trajectories), ``rollout``
-(collecting episodes), ``render`` (frames and videos), ``budget`` (smoke / lesson / paper
-presets), ``bench`` (throughput benchmarks), ``cli`` (the ``dc-lesson`` command).
+Modules: ``tasks`` (the ten dm_control ports), ``data`` (typed trajectories and the
+demonstrations on disk), ``rollout`` (collecting episodes), ``policies`` (Gaussian MLP policy,
+value network), ``ppo`` (PPO with a pluggable reward), ``experts`` (scripted and trained
+experts), ``demos`` (making demonstrations), ``render`` and ``plots`` (frames, videos,
+figures), ``budget`` (smoke / lesson / paper presets), ``bench`` (throughput benchmarks),
+``results`` (result files with provenance), ``cli`` (the ``dc-lesson`` command).
 """
 
 import os

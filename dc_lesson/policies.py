@@ -22,7 +22,7 @@ import json
 import math
 import os
 import pathlib
-import tempfile
+import uuid
 from typing import Sequence
 
 import numpy as np
@@ -200,16 +200,17 @@ def atomic_torch_save(obj, path) -> pathlib.Path:
     """``torch.save`` via a temporary file and a rename, so a crash never leaves half a file."""
     path = pathlib.Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=path.name + ".", suffix=".tmp")
+    # A plain open (not mkstemp) so the file gets the usual permissions, not 0600.
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.{uuid.uuid4().hex[:8]}.tmp")
     try:
-        with os.fdopen(fd, "wb") as f:
+        with open(tmp, "xb") as f:
             torch.save(obj, f)
             f.flush()
             os.fsync(f.fileno())
         os.replace(tmp, path)
     except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
+        if tmp.exists():
+            tmp.unlink()
         raise
     return path
 

@@ -21,6 +21,9 @@ noise and minibatch order) and the stream of episode seeds (NumPy's ``SeedSequen
 :func:`dc_lesson.rollout.episode_seeds`), so one configuration always gives the same numbers.
 A checkpoint stores all of that state, so a resumed run ends exactly where an uninterrupted one
 does.
+
+Unlike CleanRL there is no reward normalisation: the task rewards lie in [0, 1], and an
+algorithm that brings its own reward (DC) decides its scale.
 """
 
 from __future__ import annotations
@@ -45,7 +48,7 @@ from dc_lesson.rollout import episode_seeds
 class PPOConfig:
     """Every knob of PPO.  The defaults are CleanRL's for MuJoCo, except where noted."""
 
-    n_envs: int = 8              # environments stepped in lockstep
+    n_envs: int = 8              # environments stepped in lockstep (CleanRL: 1 x 2048 steps)
     n_steps: int = 256           # steps per environment per update: batch = n_envs * n_steps
     gamma: float = 0.99          # discount: values look about 1 / (1 - gamma) = 100 steps ahead
     gae_lambda: float = 0.95     # GAE's mix of one-step (0) and Monte Carlo (1) advantages
@@ -59,13 +62,14 @@ class PPOConfig:
     anneal_lr: bool = True       # decay the learning rate linearly to 0 over the run
     norm_adv: bool = True        # standardise advantages within each minibatch
     norm_obs: bool = True        # running observation normaliser inside both networks
+    #                              (cartpole learns faster without it: see tests/test_ppo.py)
     clip_vloss: bool = False     # clip value updates like the ratio (CleanRL: True; here the
     #                              rewards are not normalised, values run to ~100, and a 0.2
     #                              clip would all but freeze the value network)
     target_kl: float | None = None   # stop an update's epochs once the approximate KL exceeds it
     weight_decay: float = 0.0    # AdamW's decoupled weight decay
     hidden: tuple[int, ...] = (64, 64)   # hidden layer sizes of both networks
-    log_std_init: float = -0.5   # initial log standard deviation of the actions
+    log_std_init: float = -0.5   # initial log standard deviation of the actions (CleanRL: 0)
     total_steps: int = 1_000_000     # environment steps over the run (all environments)
     seed: int = 0                # the one seed of the run
 
@@ -106,79 +110,73 @@ class SeedStream:
 
 
 class EnvBatch:
-    """``n_envs`` environments of one task stepped in lockstep.
+    """``n_envs`` copies of one task stepped in lockstep (a :class:`~dc_lesson.tasks.VecEnv`).
 
-    ``obs`` holds the observations to act on next.  An environment whose episode ends is reset
-    at once with the next seed of the stream.  Each unfinished episode's seed and actions are
-    kept, so a checkpoint can restore the environments by replaying them.
+    ``obs`` holds the observations to act on next.  All copies share the fixed horizon, so
+    their episodes end together; then every copy restarts with the next seeds of the stream.
+    The running episodes' seeds and actions are kept, so a checkpoint can restore the copies by
+    replaying them.
     """
 
     def __init__(self, task: str, n_envs: int, seed: int):
         self.task = task
-        self.envs = [_tasks.load(task) for _ in range(n_envs)]
-        self.spec = self.envs[0].spec
-        self.low, self.high = self.envs[0].action_low, self.envs[0].action_high
+        self.venv = _tasks.load_vec(task, n_envs)
+        self.spec = self.venv.spec
         self.seeds = SeedStream(seed)
-        self.episode_seed = [0] * n_envs
-        self.episode_actions: list[list[np.ndarray]] = [[] for _ in range(n_envs)]
-        self.episode_return = np.zeros(n_envs)
-        self.obs = np.stack([self._start(i) for i in range(n_envs)])
+        self.obs = self._start([next(self.seeds) for _ in range(n_envs)])
 
     def __len__(self) -> int:
-        return len(self.envs)
+        return self.venv.n_envs
 
-    def _start(self, i: int) -> np.ndarray:
-        seed = next(self.seeds)
-        self.episode_seed[i], self.episode_actions[i], self.episode_return[i] = seed, [], 0.0
-        return self.envs[i].reset(seed=seed)
+    def _start(self, seeds) -> np.ndarray:
+        self.episode_seeds = np.asarray(seeds, np.int64)
+        self.episode_actions: list[np.ndarray] = []   # one (n_envs, act_dim) array per step
+        self.episode_return = np.zeros(len(self))
+        obs, _ = self.venv.reset(self.episode_seeds)
+        return obs
 
     def step(self, actions: np.ndarray):
-        """One action per environment, clipped to the bounds.
+        """One action per copy, clipped to the bounds.
 
         Returns ``(next_obs, rewards, dones, finished)``: the observations the actions led to
-        (at an episode's end, its final observation, not the reset one), the rewards, which
-        episodes ended, and the returns of the episodes that ended.
+        (at the episodes' end, their final observations, not the reset ones), the rewards,
+        which episodes ended, and the returns of the episodes that ended.
         """
-        next_obs = np.empty_like(self.obs)
-        rewards, dones = np.zeros(len(self)), np.zeros(len(self), bool)
+        actions = self.venv.check_actions(actions)
+        next_obs, rewards, _, done = self.venv.step(actions)
+        self.episode_actions.append(actions)
+        self.episode_return += rewards
         finished = []
-        for i, env in enumerate(self.envs):
-            a = np.clip(np.asarray(actions[i], np.float64), self.low, self.high)
-            next_obs[i], rewards[i], dones[i] = env.step(a)
-            self.episode_actions[i].append(a)
-            self.episode_return[i] += rewards[i]
-            if dones[i]:
-                finished.append(float(self.episode_return[i]))
-                self.obs[i] = self._start(i)
-            else:
-                self.obs[i] = next_obs[i]
-        return next_obs, rewards, dones, finished
+        if done:
+            finished = self.episode_return.tolist()
+            self.obs = self._start([next(self.seeds) for _ in range(len(self))])
+        else:
+            self.obs = next_obs
+        return next_obs, rewards, np.full(len(self), done), finished
 
     def state_dict(self) -> dict:
-        act_dim = self.spec.act_dim
+        actions = np.zeros((0, len(self), self.spec.act_dim))
+        if self.episode_actions:
+            actions = np.stack(self.episode_actions)
         return {"seed": self.seeds.seed, "seed_count": self.seeds.count,
-                "episode_seed": torch.tensor(self.episode_seed, dtype=torch.int64),
-                "episode_actions": [torch.from_numpy(np.array(a, np.float64).reshape(-1, act_dim))
-                                    for a in self.episode_actions],
-                "obs": torch.from_numpy(self.obs.copy())}
+                "episode_seeds": torch.from_numpy(self.episode_seeds.copy()),
+                "episode_actions": torch.from_numpy(actions),
+                "obs": torch.from_numpy(np.array(self.obs))}
 
     def load_state_dict(self, state: dict) -> None:
-        """Restores the environments by replaying each unfinished episode from its seed.
+        """Restores the copies by replaying the running episodes from their seeds.
 
         Replaying is exact for any task (MuJoCo is deterministic) and also restores what a
         task sets at reset outside the simulation state (a reacher's target, say).
         """
-        if len(state["episode_actions"]) != len(self):
-            raise ValueError(f"the saved state has {len(state['episode_actions'])} environments, "
+        if len(state["episode_seeds"]) != len(self):
+            raise ValueError(f"the saved state has {len(state['episode_seeds'])} environments, "
                              f"this batch {len(self)}")
-        for i, env in enumerate(self.envs):
-            self.episode_seed[i] = int(state["episode_seed"][i])
-            self.obs[i] = env.reset(seed=self.episode_seed[i])
-            self.episode_actions[i], self.episode_return[i] = [], 0.0
-            for a in state["episode_actions"][i].numpy():
-                self.obs[i], r, _ = env.step(a)
-                self.episode_actions[i].append(a)
-                self.episode_return[i] += r
+        self.obs = self._start(state["episode_seeds"].numpy())
+        for actions in state["episode_actions"].numpy():
+            self.obs, rewards, _, _ = self.venv.step(actions)
+            self.episode_actions.append(actions)
+            self.episode_return += rewards
         self.seeds = SeedStream(state["seed"], state["seed_count"])
         if not np.array_equal(self.obs, state["obs"].numpy()):
             raise RuntimeError("replaying the saved episodes did not reproduce the saved "

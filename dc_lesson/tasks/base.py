@@ -298,6 +298,10 @@ class VecEnv:
         self.action_low, self.action_high = envs[0].action_low, envs[0].action_high
         self._models = [e.physics.model.ptr for e in envs]
         self._datas = [e.physics.data.ptr for e in envs]
+        # The fast path sets the controls itself; a task with its own step hooks gets them called.
+        cls = type(self.task)
+        self._hooks = (cls.before_step is not suite_base.Task.before_step
+                       or cls.after_step is not suite_base.Task.after_step)
         self.n_active = 0
         self.t = 0
 
@@ -337,9 +341,15 @@ class VecEnv:
             raise RuntimeError("call reset() before step(): the episodes are over or not started")
         a = self.check_actions(actions)
         n = self.spec.n_sub_steps
-        for m, d, ai in zip(self._models, self._datas[:self.n_active], a):
-            d.ctrl[:] = ai          # what Task.before_step does (set_control)
-            step_physics(m, d, n)
+        if self._hooks:
+            for env, ai in zip(self.envs[:self.n_active], a):
+                env.task.before_step(ai, env.physics)
+                step_physics(env.physics.model.ptr, env.physics.data.ptr, n)
+                env.task.after_step(env.physics)
+        else:
+            for m, d, ai in zip(self._models, self._datas[:self.n_active], a):
+                d.ctrl[:] = ai          # what Task.before_step does (set_control)
+                step_physics(m, d, n)
         obs, rew, feat = self.task.outputs(self._datas[:self.n_active], self._models[0])
         if not np.all(np.isfinite(obs)):
             raise PhysicsDiverged(f"the {self.spec.name} simulation diverged at step {self.t}")
