@@ -186,6 +186,89 @@ print("replay identical:", np.array_equal(obs, traj.observations)
       and np.array_equal(rew, traj.rewards))
 
 # %% [markdown]
+# ## The experts and their demonstrations
+#
+# Imitation needs an expert. The paper trained its experts with TRPO on Gym's rewards; ours
+# come from whatever method reaches a competent policy on a laptop CPU, and the
+# demonstrations' manifest, `data/demos/manifest.json`, records for each task how its expert
+# was made, the return of 50 fresh expert episodes and 50 random ones (the two ends of the
+# *scaled return*: expert 1, random 0), how the 25 stored demonstrations spread over the
+# task's modes, and the command and revision that made them. `dc-lesson demos --task NAME`
+# regenerates a task's file.
+#
+# * `cartpole`: a linear-quadratic regulator about the upright position, its cost read off
+#   the task's reward. Not a learned policy, and nearly perfect.
+# * `reacher1`, `reacher2`, `reacher4`: inverse kinematics to a target and a PD controller on
+#   the joint angles. In the multi-target tasks **a coin flip picks the target of each
+#   episode**, uniformly and independently of where the arm starts. That is a deliberate
+#   choice: the observation does not say which target was picked, so at the first step the
+#   expert's action distribution is genuinely multi-modal (four directions from the same
+#   state), and a learner must commit to a mode by itself. Had the expert gone to the target
+#   nearest its start, the mode would be a function of the initial state, which a
+#   single-Gaussian policy can represent, and there would be little to collapse.
+# * The locomotion tasks: policies trained with the library's PPO (table below once they
+#   exist; tasks without demonstrations yet are listed as such).
+
+# %%
+from dc_lesson import data
+
+manifest = data.read_manifest()["tasks"]
+rows = []
+for name in names:
+    e = manifest.get(name)
+    if e is None:
+        rows.append({"task": name, "expert": "not yet generated"})
+        continue
+    rows.append({"task": name, "expert": e["expert"]["name"],
+                 "expert return": f"{e['expert_return']['mean']:.1f} ± {e['expert_return']['std']:.1f}",
+                 "random return": f"{e['random_return']['mean']:.1f} ± {e['random_return']['std']:.1f}",
+                 "demos": e["n_trajectories"],
+                 "demo modes": ", ".join(f"{k} {v:.2f}" for k, v in e["demo_mode_shares"].items()),
+                 "expert modes (50 ep.)": ", ".join(f"{k} {v:.2f}"
+                                                   for k, v in e["expert_mode_shares"].items())})
+pd.DataFrame(rows).set_index("task").fillna("")
+
+# %% [markdown]
+# The returns of the 25 demonstrations of each task, and, for the multi-target reacher,
+# where the fingertip spends its time in them. With only 25 coin flips the demonstrations do
+# not split exactly evenly over the targets; the expert's own shares over 50 fresh episodes
+# are in the table above. What a learner can hope to match is the demonstrations' split.
+
+# %%
+have = [n for n in names if n in manifest]
+fig, axes = plt.subplots(1, 2, figsize=(11, 3.6), gridspec_kw={"width_ratios": [2, 1]})
+demo_returns = [data.load_demos(n).returns for n in have]
+axes[0].boxplot(demo_returns, labels=have)
+axes[0].set_ylabel("demonstration return")
+axes[0].set_ylim(0, 1050)
+axes[0].tick_params(axis="x", rotation=30)
+if "reacher4" in manifest:
+    tips4 = data.load_demos("reacher4").mode_features
+    axes[1].hist2d(tips4[:, 0], tips4[:, 1], bins=60, range=[[-0.26, 0.26], [-0.26, 0.26]],
+                   cmap="Greys", cmin=1)
+    for xy, colour in zip(reacher.target_positions(4), reacher.target_colours(4)):
+        axes[1].add_patch(plt.Circle(xy, reacher.TARGET_SIZE + 0.01, fill=False, color=colour,
+                                     lw=2))
+    axes[1].set_aspect("equal")
+    axes[1].set_title("reacher4 demonstrations: fingertip")
+plt.tight_layout()
+plt.show()
+
+# %% [markdown]
+# An expert at work: the `reacher4` expert, three episodes whose coin flips differ.
+
+# %%
+from dc_lesson.experts import load_expert
+
+expert4, _ = load_expert("reacher4")
+clips = []
+for seed in (0, 1, 2):
+    clips += render.episode_frames("reacher4", expert4, seed=seed,
+                                   n_steps=min(60, BUDGET.video_steps), every=3,
+                                   height=120, width=120)
+render.video(clips, fps=15)
+
+# %% [markdown]
 # ## How fast is a step?
 #
 # Everything later in the book is bounded by how fast we can collect experience, so the
