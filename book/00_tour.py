@@ -238,7 +238,7 @@ pd.DataFrame(rows).set_index("task").fillna("")
 have = [n for n in names if n in manifest]
 fig, axes = plt.subplots(1, 2, figsize=(11, 3.6), gridspec_kw={"width_ratios": [2, 1]})
 demo_returns = [data.load_demos(n).returns for n in have]
-axes[0].boxplot(demo_returns, labels=have)
+axes[0].boxplot(demo_returns, tick_labels=have)
 axes[0].set_ylabel("demonstration return")
 axes[0].set_ylim(0, 1050)
 axes[0].tick_params(axis="x", rotation=30)
