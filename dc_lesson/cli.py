@@ -2,6 +2,7 @@
 
     dc-lesson tour                 frames of the ten tasks, their specs and random returns
     dc-lesson tasks                the spec table
+    dc-lesson expert train --task NAME   train (or resume) the expert of NAME with PPO
     dc-lesson demos --task NAME    roll out the expert of NAME into data/demos/
     dc-lesson bench rollout        rollout throughput against raw MuJoCo stepping
 
@@ -69,6 +70,27 @@ def cmd_demos(args) -> int:
     return 0
 
 
+def cmd_expert(args) -> int:
+    from dc_lesson import rollout
+    from dc_lesson.experts import load_expert, trained
+    for name in args.task:
+        if args.what == "train":
+            if name not in trained.EXPERT_UNITS:
+                print(f"dc-lesson: {name} has a scripted expert; nothing to train",
+                      file=sys.stderr)
+                continue
+            for unit in trained.EXPERT_UNITS[name]:
+                meta = trained.train_unit(unit, total_steps=args.steps,
+                                          command=_command_line())
+                print(f"{unit}: {meta['steps']} steps, {meta['training_seconds']:.0f} s of "
+                      f"training; saved {trained.unit_paths(unit)['policy']}")
+        expert, info = load_expert(name)
+        r = rollout.returns(rollout.collect(name, expert, args.episodes, seed=1))
+        print(f"{name}: expert ({info['name']}) return {r.mean():.1f} ± {r.std():.1f} over "
+              f"{len(r)} episodes")
+    return 0
+
+
 def cmd_bench(args) -> int:
     from dc_lesson import bench, budget
     if args.what == "rollout":
@@ -91,6 +113,12 @@ def build_parser() -> argparse.ArgumentParser:
     s = sub.add_parser("demos", help="roll out a task's expert into data/demos/")
     s.add_argument("--task", nargs="+", required=True)
     s.set_defaults(func=cmd_demos)
+    s = sub.add_parser("expert", help="train or evaluate a task's expert")
+    s.add_argument("what", choices=["train", "eval"])
+    s.add_argument("--task", nargs="+", required=True)
+    s.add_argument("--steps", type=int, default=None, help="override the recipe's total steps")
+    s.add_argument("--episodes", type=int, default=10, help="evaluation episodes")
+    s.set_defaults(func=cmd_expert)
     s = sub.add_parser("bench", help="benchmarks")
     s.add_argument("what", choices=["rollout"])
     s.add_argument("--tasks", nargs="*", default=None)
@@ -108,7 +136,7 @@ def main(argv=None) -> int:
         for name in (getattr(args, "tasks", None) or []) + (getattr(args, "task", None) or []):
             tasks.check_name(name)
         return args.func(args)
-    except (budget.BudgetError, tasks.UnknownTaskError) as e:
+    except (budget.BudgetError, tasks.UnknownTaskError, FileNotFoundError) as e:
         print(f"dc-lesson: {e}", file=sys.stderr)
         return 2
 
