@@ -157,12 +157,14 @@ render.video(frames, fps=15)
 # ## From the paper's Gym tasks to our ports
 #
 # The paper ran OpenAI Gym's MuJoCo tasks; their code is not public. Where dm_control has the
-# same robot we keep dm_control's model and its task (its reward in $[0, 1]$ per step and
-# fixed 1000-step horizon), because that is the setting its models were tuned for and because
-# a competent expert must be reachable on a laptop CPU. The suite has no ant, so `ant` is Gym's
-# ant model written as a dm_control domain with Gym's objective (move forward while healthy)
-# rescaled to $[0, 1]$. No port terminates early: a fallen walker simply stops earning reward,
-# which keeps every trajectory the same length for the density models of later chapters.
+# same robot we keep dm_control's model, and we keep its task (its reward in $[0, 1]$ per step
+# and fixed 1000-step horizon) where a competent expert is reachable on a laptop CPU: cartpole,
+# walker, the cheetahs and the humanoid. Two ports take Gym's objective instead, rescaled to
+# $[0, 1]$ per step: `hopper`, because the suite's hop task (start lying in a random
+# orientation, no reward until hopping at speed) defeated every expert we could train here,
+# and `ant`, because the suite has no ant (it is Gym's ant model written as a dm_control
+# domain). No port terminates early: a fallen walker simply stops earning reward, which keeps
+# every trajectory the same length for the density models of later chapters.
 
 # %%
 table[["paper task", "differs from the paper"]].style.set_properties(**{"text-align": "left"})

@@ -71,6 +71,11 @@ class PPOConfig:
     hidden: tuple[int, ...] = (64, 64)   # hidden layer sizes of both networks
     log_std_init: float = -0.5   # initial log standard deviation of the actions (CleanRL: 0)
     total_steps: int = 1_000_000     # environment steps over the run (all environments)
+    episode_steps: int | None = None  # cut training episodes after this many steps (None: the
+    #                                   task's horizon). A cut is a time limit, so its value is
+    #                                   bootstrapped; shorter episodes put more of the data near
+    #                                   the start states, where a fallen body has not yet wasted
+    #                                   the rest of a 1000-step episode lying still.
     seed: int = 0                # the one seed of the run
 
     def __post_init__(self):
@@ -118,10 +123,11 @@ class EnvBatch:
     replaying them.
     """
 
-    def __init__(self, task: str, n_envs: int, seed: int):
+    def __init__(self, task: str, n_envs: int, seed: int, episode_steps: int | None = None):
         self.task = task
         self.venv = _tasks.load_vec(task, n_envs)
         self.spec = self.venv.spec
+        self.episode_steps = min(episode_steps or self.spec.horizon, self.spec.horizon)
         self.seeds = SeedStream(seed)
         self.obs = self._start([next(self.seeds) for _ in range(n_envs)])
 
@@ -144,6 +150,7 @@ class EnvBatch:
         """
         actions = self.venv.check_actions(actions)
         next_obs, rewards, _, done = self.venv.step(actions)
+        done = done or self.venv.t >= self.episode_steps
         self.episode_actions.append(actions)
         self.episode_return += rewards
         finished = []
@@ -426,7 +433,7 @@ def train(task: str, config: PPOConfig = PPOConfig(), reward_fn: RewardFn | None
     optimizer = torch.optim.AdamW([*policy.parameters(), *value_fn.parameters()],
                                   lr=config.lr, eps=1e-5, weight_decay=config.weight_decay)
     generator = torch.Generator().manual_seed(sample_seed)
-    envs = EnvBatch(task, config.n_envs, env_seed)
+    envs = EnvBatch(task, config.n_envs, env_seed, config.episode_steps)
     first, log = 0, []
     if checkpoint is not None and pathlib.Path(checkpoint).exists():
         first, log = load_checkpoint(checkpoint, task=task, config=config, policy=policy,
