@@ -14,13 +14,6 @@ from dc_lesson.policies import GaussianPolicy, load_policy, save_policy
 from dc_lesson.ppo import PPOConfig
 
 
-@pytest.fixture(autouse=True, scope="module")
-def one_thread():
-    # The machine's cores are shared; one thread also makes runs repeat to the last digit.
-    n = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(n)
 
 
 # A known expert: a = W s + b + 0.1 noise, on states far from zero mean and unit scale (so the

@@ -16,13 +16,6 @@ from dc_lesson.policies import (GaussianPolicy, PolicyFileError, StochasticPolic
 from dc_lesson.rollout import RandomPolicy, collect, returns
 
 
-@pytest.fixture(autouse=True, scope="module")
-def one_thread():
-    # The machine's cores are shared; one thread also keeps the timings honest.
-    n = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(n)
 
 
 # A run small enough for a few seconds: 4 updates of 2 envs x 300 steps, so the fourth update
