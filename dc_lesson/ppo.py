@@ -376,7 +376,9 @@ def load_checkpoint(path, *, task: str, config: PPOConfig, policy, value_fn, opt
     ckpt = load_checked(path, CHECKPOINT_FORMAT, CHECKPOINT_VERSION, "PPO checkpoint")
     if ckpt["task"] != task:
         raise PolicyFileError(f"checkpoint {path} is of task {ckpt['task']!r}, not {task!r}")
-    saved = json.loads(ckpt["config"])
+    # A knob added to PPOConfig after the checkpoint was written takes its default value.
+    defaults = {f.name: f.default for f in dataclasses.fields(PPOConfig)}
+    saved = json.loads(json.dumps({**defaults, **json.loads(ckpt["config"])}))
     now = json.loads(config.to_json())
     if saved != now:
         diff = {k: (saved.get(k), now.get(k)) for k in saved.keys() | now.keys()
