@@ -25,6 +25,10 @@ class Budget:
     tour_episodes: int        # random-policy episodes per task in the tour
     video_steps: int          # control steps shown in a task's video
     bench_steps: int          # control steps per task in the rollout benchmark
+    bc_demo_counts: tuple[int, ...]  # demonstrations BC learns from (chapter 1, `bench bc`)
+    bc_seeds: tuple[int, ...]        # BC training seeds per demonstration count
+    bc_eval_episodes: int            # fresh episodes each BC policy is evaluated on
+    bc_max_epochs: int               # BC's epoch limit (early stopping usually ends sooner)
 
     @property
     def is_smoke(self) -> bool:
@@ -32,9 +36,15 @@ class Budget:
 
 
 PRESETS: dict[str, Budget] = {
-    "smoke": Budget("smoke", tour_episodes=2, video_steps=20, bench_steps=300),
-    "lesson": Budget("lesson", tour_episodes=10, video_steps=150, bench_steps=8000),
-    "paper": Budget("paper", tour_episodes=50, video_steps=400, bench_steps=32000),
+    "smoke": Budget("smoke", tour_episodes=2, video_steps=20, bench_steps=300,
+                    bc_demo_counts=(2, 4), bc_seeds=(0,), bc_eval_episodes=2,
+                    bc_max_epochs=3),
+    "lesson": Budget("lesson", tour_episodes=10, video_steps=150, bench_steps=8000,
+                     bc_demo_counts=(4, 11, 18, 25), bc_seeds=(0, 1, 2, 3, 4),
+                     bc_eval_episodes=50, bc_max_epochs=200),
+    "paper": Budget("paper", tour_episodes=50, video_steps=400, bench_steps=32000,
+                    bc_demo_counts=(4, 11, 18, 25), bc_seeds=tuple(range(10)),
+                    bc_eval_episodes=50, bc_max_epochs=1000),
 }
 
 

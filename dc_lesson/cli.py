@@ -5,6 +5,8 @@
     dc-lesson expert train --task NAME   train (or resume) the expert of NAME with PPO
     dc-lesson demos --task NAME    roll out the expert of NAME into data/demos/
     dc-lesson bench rollout        rollout throughput against raw MuJoCo stepping
+    dc-lesson bench bc --out data/results/bc_demos.json   BC against the number of demos
+    dc-lesson bench bc-drift --out data/results/bc_drift.json   BC's drift from the demos
 
 Sizes follow ``DC_LESSON_BUDGET`` (smoke | lesson | paper); see ``dc_lesson.budget``.
 """
@@ -96,6 +98,28 @@ def cmd_bench(args) -> int:
     if args.what == "rollout":
         steps = args.steps or budget.current().bench_steps
         bench.main(args.tasks or None, n_steps=steps, out=args.out, command=_command_line())
+    elif args.what == "bc":
+        from dc_lesson import bench_bc, data
+        try:
+            bench_bc.main(args.tasks or None, demo_counts=args.demos, seeds=args.seeds,
+                          eval_episodes=args.episodes, max_epochs=args.epochs, out=args.out,
+                          command=_command_line())
+        except (data.DemoError, bench_bc.BenchInputError) as e:
+            print(f"dc-lesson: {e}", file=sys.stderr)
+            return 2
+    elif args.what == "bc-drift":
+        from dc_lesson import bench_bc, data
+        b = budget.current()
+        counts = args.demos or (min(b.bc_demo_counts), max(b.bc_demo_counts))
+        try:
+            bench_bc.run_drift(args.tasks or bench_bc.available_tasks(), counts,
+                               args.seeds or b.bc_seeds[:3],
+                               args.episodes or min(20, b.bc_eval_episodes),
+                               max_epochs=args.epochs or b.bc_max_epochs, out=args.out,
+                               command=_command_line())
+        except (data.DemoError, bench_bc.BenchInputError) as e:
+            print(f"dc-lesson: {e}", file=sys.stderr)
+            return 2
     return 0
 
 
@@ -120,10 +144,18 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--episodes", type=int, default=10, help="evaluation episodes")
     s.set_defaults(func=cmd_expert)
     s = sub.add_parser("bench", help="benchmarks")
-    s.add_argument("what", choices=["rollout"])
+    s.add_argument("what", choices=["rollout", "bc", "bc-drift"])
     s.add_argument("--tasks", nargs="*", default=None)
     s.add_argument("--steps", type=int, default=None, help="control steps per task")
     s.add_argument("--out", default=None, help="write the figures to this JSON file")
+    s.add_argument("--demos", type=int, nargs="+", default=None,
+                   help="bc: demonstration counts (default: the budget's)")
+    s.add_argument("--seeds", type=int, nargs="+", default=None,
+                   help="bc: training seeds (default: the budget's)")
+    s.add_argument("--episodes", type=int, default=None,
+                   help="bc: evaluation episodes per policy (default: the budget's)")
+    s.add_argument("--epochs", type=int, default=None,
+                   help="bc: maximum training epochs (default: the budget's)")
     s.set_defaults(func=cmd_bench)
     return p
 

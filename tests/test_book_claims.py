@@ -11,3 +11,118 @@ def test_chapter00_rollout_speed_claims_hold_in_the_stored_benchmark():
         assert r["rollout / dm_control"] > 1.0, name
         if tasks.spec(name).n_sub_steps >= 4:
             assert r["rollout / raw"] >= 0.5, name
+
+
+# -- chapter 01: behaviour cloning (data/results/bc_demos.json, data/results/bc_drift.json) -----
+
+def _bc_summary():
+    record = read_result("bc_demos.json")
+    return record, {(r["task"], r["n_demos"]): r for r in record["summary"]}
+
+
+def _bc_runs(task, min_demos=0):
+    return [r for r in read_result("bc_demos.json")["runs"]
+            if r["task"] == task and r["n_demos"] >= min_demos]
+
+
+def test_chapter01_bc_benchmark_is_the_lesson_run_the_chapter_describes():
+    record, s = _bc_summary()
+    assert record["budget"] == "lesson" and len(record["seeds"]) == 5
+    assert record["demo_counts"] == [4, 11, 18, 25] and record["eval_episodes"] == 50
+    assert record["bc_config"]["epochs"] == 200 and record["bc_config"]["patience"] == 20
+    assert {"reacher1", "reacher4", "halfcheetah"} <= set(record["tasks"])
+    assert all(r["n_seeds"] == 5 for r in s.values())
+
+
+def test_chapter01_reacher4_return_rises_with_demonstrations_but_seeds_disagree():
+    _, s = _bc_summary()
+    means = [s["reacher4", n]["scaled_return_mean"] for n in (4, 11, 18, 25)]
+    assert means == sorted(means) and len(set(means)) == 4          # rises with every step
+    assert [round(m, 2) for m in means] == [0.14, 0.27, 0.51, 0.56]
+    assert round(s["reacher4", 25]["scaled_return_std"], 2) == 0.32
+
+
+def test_chapter01_halfcheetah_bc_barely_needs_more_than_four_demonstrations():
+    _, s = _bc_summary()
+    m = {n: s["halfcheetah", n]["scaled_return_mean"] for n in (4, 11, 18, 25)}
+    sd = {n: s["halfcheetah", n]["scaled_return_std"] for n in (4, 11, 18, 25)}
+    assert round(m[4], 2) == 0.88
+    assert all(m[n] >= 0.935 for n in (11, 18, 25))                  # "0.94 or more"
+    assert m[4] == min(m.values()) and sd[4] == max(sd.values())
+    assert (round(m[18], 2), round(m[25], 2)) == (0.96, 0.95)
+    # Far smaller than the paper's loss at 4 demonstrations (about 0.45 on this scale).
+    assert m[4] > 0.45 + 0.3
+
+
+def test_chapter01_reacher1_shows_no_trend():
+    _, s = _bc_summary()
+    m = {n: s["reacher1", n]["scaled_return_mean"] for n in (4, 11, 18, 25)}
+    assert max(m, key=m.get) == 11 and round(m[11], 2) == 0.84
+    assert m[25] <= m[4] and (round(m[25], 2), round(m[4], 2)) == (0.61, 0.65)
+    eighteen = [r for r in _bc_runs("reacher1") if r["n_demos"] == 18]
+    failed = [r for r in eighteen if abs(r["scaled_return"]) < 0.005]
+    assert len(eighteen) == 5 and len(failed) == 1
+    assert len(failed[0]["returns"]) == 50 and max(failed[0]["returns"]) == 31.0
+
+
+def test_chapter01_early_stopping_ends_reacher_runs_and_the_epoch_limit_cheetah_runs():
+    for task in ("reacher1", "reacher4"):
+        assert all(r["epochs_run"] < 200 for r in _bc_runs(task, min_demos=11)), task
+    # "best epoch at or before epoch 43" for reacher4 with 11 or more demonstrations
+    assert max(r["best_epoch"] for r in _bc_runs("reacher4", min_demos=11)) == 43
+    cheetah = _bc_runs("halfcheetah")
+    assert len(cheetah) == 20 and sum(r["epochs_run"] == 200 for r in cheetah) == 18
+    assert all(r["train_seconds"] < 30 for task in ("reacher1", "reacher4", "halfcheetah")
+               for r in _bc_runs(task))                           # "under 30 seconds per run"
+
+
+def test_chapter01_bc_concentrates_on_one_target_chosen_by_the_seed():
+    import collections
+
+    from dc_lesson import data, metrics
+    runs = _bc_runs("reacher4", min_demos=11)
+    assert len(runs) == 15
+    assert all(max(r["mode_shares"].values()) >= 0.5 for r in runs)
+    for n in (11, 18, 25):        # no target has more than 44% of the demonstrations used
+        shares = metrics.mode_shares("reacher4",
+                                     data.load_demos("reacher4", n_trajectories=n).trajectories)
+        assert max(shares.values()) <= 0.44 + 1e-9, n
+    record, _ = _bc_summary()
+    expert = record["task_info"]["reacher4"]["expert_mode_shares"]
+    assert [round(expert[k], 2) for k in ("red", "green", "blue", "yellow")] == [0.22, 0.26,
+                                                                                  0.30, 0.22]
+    favourite = collections.Counter(max(r["mode_shares"], key=r["mode_shares"].get)
+                                    for r in runs)
+    assert favourite["red"] == 9 and set(favourite) == {"red", "green", "blue", "yellow"}
+
+
+def test_chapter01_more_demonstrations_do_not_bring_reacher4_coverage_closer():
+    _, s = _bc_summary()
+    assert s["reacher4", 25]["emd_mean"] >= s["reacher4", 4]["emd_mean"]
+    assert (round(s["reacher4", 25]["emd_mean"], 3), round(s["reacher4", 4]["emd_mean"], 3)) \
+        == (0.136, 0.110)
+
+
+def test_chapter01_drift_claims_hold_in_the_stored_drift_runs():
+    record = read_result("bc_drift.json")
+    assert record["budget"] == "lesson" and record["seeds"] == [0, 1, 2]
+    assert record["demo_counts"] == [4, 25] and record["n_episodes"] == 20
+    late = {(r["task"], r["seed"]): {k: v["late_median"] for k, v in r["curves"].items()}
+            for r in record["per_seed"]}
+    mean = {(r["task"], r["policy"]): r["late_median_mean"] for r in record["summary"]}
+    # reacher4: the expert rests exactly on demonstrated states, no BC policy does.
+    bc4 = [late["reacher4", s] for s in (0, 1, 2)]
+    assert all(d["expert"] == 0.0 for d in bc4)
+    bc_values = [d[k] for d in bc4 for k in ("BC, 4 demos", "BC, 25 demos")]
+    assert round(min(bc_values), 3) == 0.015 and round(max(bc_values), 2) == 1.13
+    assert mean["reacher4", "BC, 4 demos"] > mean["reacher4", "BC, 25 demos"]
+    assert (round(mean["reacher4", "BC, 4 demos"], 2),
+            round(mean["reacher4", "BC, 25 demos"], 2)) == (0.65, 0.43)
+    assert any(d["BC, 4 demos"] <= d["BC, 25 demos"] for d in bc4)   # "not for every seed"
+    # halfcheetah: BC at most a fifth farther than the expert's fresh episodes.
+    hc = [late["halfcheetah", s] for s in (0, 1, 2)]
+    floor = hc[0]["expert"]
+    assert round(floor, 2) == 0.20 and all(d["expert"] == floor for d in hc)
+    bc_hc = [d[k] for d in hc for k in ("BC, 4 demos", "BC, 25 demos")]
+    assert max(bc_hc) <= 1.2 * floor
+    assert (round(min(bc_hc), 2), round(max(bc_hc), 2)) == (0.20, 0.24)

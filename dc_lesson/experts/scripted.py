@@ -326,7 +326,8 @@ def describe(task: str) -> dict:
                 "method": "two-link inverse kinematics to the chosen target, PD control on "
                           "the joint angles", "gains": {"kp": list(map(float, ReacherExpert.KP)),
                                                         "kd": list(map(float, ReacherExpert.KD))},
-                "mode_choice": "coin: the target is drawn uniformly per episode from the "
+                "mode_choice": None if task == "reacher1" else
+                               "coin: the target is drawn uniformly per episode from the "
                                "episode seed, independent of the initial state"}
     raise ValueError(f"no scripted expert for task {task!r}")
 
