@@ -5,6 +5,7 @@
     dc-lesson expert train --task NAME   train (or resume) the expert of NAME with PPO
     dc-lesson demos --task NAME    roll out the expert of NAME into data/demos/
     dc-lesson bench rollout        rollout throughput against raw MuJoCo stepping
+    dc-lesson bench softflow       SoftFlow's log_prob and training speed against a naive CNF
     dc-lesson bench bc --out data/results/bc_demos.json   BC against the number of demos
     dc-lesson bench bc-drift --out data/results/bc_drift.json   BC's drift from the demos
 
@@ -95,6 +96,9 @@ def cmd_expert(args) -> int:
 
 def cmd_bench(args) -> int:
     from dc_lesson import bench, budget
+    if args.what == "softflow":
+        from dc_lesson import bench_softflow
+        return bench_softflow.main(["--save", args.out] if args.out else [])
     if args.what == "rollout":
         steps = args.steps or budget.current().bench_steps
         bench.main(args.tasks or None, n_steps=steps, out=args.out, command=_command_line())
@@ -144,7 +148,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--episodes", type=int, default=10, help="evaluation episodes")
     s.set_defaults(func=cmd_expert)
     s = sub.add_parser("bench", help="benchmarks")
-    s.add_argument("what", choices=["rollout", "bc", "bc-drift"])
+    s.add_argument("what", choices=["rollout", "bc", "bc-drift", "softflow"])
     s.add_argument("--tasks", nargs="*", default=None)
     s.add_argument("--steps", type=int, default=None, help="control steps per task")
     s.add_argument("--out", default=None, help="write the figures to this JSON file")
