@@ -192,8 +192,12 @@ POLICY_VERSION = 1
 _CLASSES = {"GaussianPolicy": GaussianPolicy, "ValueNetwork": ValueNetwork}
 
 
-class PolicyFileError(ValueError):
-    """A policy or checkpoint file that cannot be read, or is not what it should be."""
+class ModelFileError(ValueError):
+    """A saved model file (policy, PPO checkpoint, SoftFlow) that cannot be read, or is not
+    what it should be."""
+
+
+PolicyFileError = ModelFileError   # the name the policy code and its tests use
 
 
 def atomic_torch_save(obj, path) -> pathlib.Path:
@@ -268,6 +272,6 @@ def load_policy(path) -> GaussianPolicy | ValueNetwork:
     return net.eval()
 
 
-__all__ = ["ACTIVATIONS", "GaussianPolicy", "PolicyFileError", "RunningNorm",
+__all__ = ["ACTIVATIONS", "GaussianPolicy", "ModelFileError", "PolicyFileError", "RunningNorm",
            "StochasticPolicy", "ValueNetwork", "atomic_torch_save", "layer_init",
            "load_checked", "load_policy", "mlp", "save_policy"]
