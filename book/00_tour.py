@@ -224,7 +224,7 @@ for name in names:
     rows.append({"task": name, "expert": e["expert"]["name"],
                  "expert return": f"{e['expert_return']['mean']:.1f} ± {e['expert_return']['std']:.1f}",
                  "random return": f"{e['random_return']['mean']:.1f} ± {e['random_return']['std']:.1f}",
-                 "demos": e["n_trajectories"],
+                 "demos": str(e["n_trajectories"]),
                  "demo modes": ", ".join(f"{k} {v:.2f}" for k, v in e["demo_mode_shares"].items()),
                  "expert modes (50 ep.)": ", ".join(f"{k} {v:.2f}"
                                                    for k, v in e["expert_mode_shares"].items())})
