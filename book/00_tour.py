@@ -246,8 +246,11 @@ axes[0].set_ylim(0, 1050)
 axes[0].tick_params(axis="x", rotation=30)
 if "reacher4" in manifest:
     tips4 = data.load_demos("reacher4").mode_features
+    # Log colour scale: the expert rests on a target for most of an episode, and on a linear
+    # scale its short paths between start and target would vanish.
+    from matplotlib.colors import LogNorm
     axes[1].hist2d(tips4[:, 0], tips4[:, 1], bins=60, range=[[-0.26, 0.26], [-0.26, 0.26]],
-                   cmap="Greys", cmin=1)
+                   cmap="Greys", cmin=1, norm=LogNorm())
     for xy, colour in zip(reacher.target_positions(4), reacher.target_colours(4)):
         axes[1].add_patch(plt.Circle(xy, reacher.TARGET_SIZE + 0.01, fill=False, color=colour,
                                      lw=2))
