@@ -126,3 +126,30 @@ def test_chapter01_drift_claims_hold_in_the_stored_drift_runs():
     bc_hc = [d[k] for d in hc for k in ("BC, 4 demos", "BC, 25 demos")]
     assert max(bc_hc) <= 1.2 * floor
     assert (round(min(bc_hc), 2), round(max(bc_hc), 2)) == (0.20, 0.24)
+
+
+# -- chapter 03: SoftFlow (data/results/bench_softflow.json) ------------------------------------
+
+def test_chapter03_softflow_speed_claims_hold_in_the_stored_benchmark():
+    record = read_result("bench_softflow.json")
+    assert record["budget"] == "lesson" and record["dim"] == 17 and record["batch"] == 2048
+    lp = record["log_prob"]
+    naive = lp["naive: autograd loop, dopri5 1e-5"]
+    assert naive["speedup"] == 1.0 and naive["mean_abs_diff"] == 0.0
+    default = lp["ours, rk4 0.25 + 4-node quadrature [default]"]
+    # "about 6.2 times as many states per second", "4.8e-4 nats on average (at most 0.009)"
+    assert round(default["speedup"], 1) == 6.2
+    assert round(default["states_per_s"] / naive["states_per_s"], 1) == 6.2
+    assert f"{default['mean_abs_diff']:.1e}" == "4.8e-04"
+    assert round(default["max_abs_diff"], 3) == 0.009
+    assert default["trace_evals"] == 4
+    # "the hand-carried exact trace alone gives 1.7 times ... differences of a few 1e-6 nats"
+    same_solver = lp["ours, dopri5 1e-5 (the reference's solver)"]
+    assert round(same_solver["speedup"], 1) == 1.7
+    assert 1e-6 <= same_solver["mean_abs_diff"] < 1e-5
+    # "Training gains less, about 1.1 times per step"
+    for row in record["train"].values():
+        assert round(row["ratio"], 1) == 1.1
+        assert abs(row["ours"]["steps_per_s"] / row["naive vjp"]["steps_per_s"] - row["ratio"]) < 1e-9
+    # the summary's "about 6 times faster ... at the same accuracy"
+    assert 5.5 < default["speedup"] < 6.5 and default["mean_abs_diff"] < 1e-3
