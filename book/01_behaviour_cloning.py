@@ -35,9 +35,7 @@
 # 5. lists the choices the paper leaves open and the ones we made.
 
 # %%
-import logging
 import time
-import warnings
 
 import matplotlib.pyplot as plt
 import numpy as np
@@ -47,19 +45,14 @@ from IPython.display import display
 
 from dc_lesson import bc, bench_bc, budget, data, metrics, plots, rollout
 from dc_lesson.policies import GaussianPolicy
+from dc_lesson import notebook
 from dc_lesson.results import read_result
 
-warnings.filterwarnings("ignore", message="IProgress not found")   # tqdm without ipywidgets
-logging.getLogger("absl").setLevel(logging.ERROR)     # dm_control's deprecation notices
-
-torch.set_num_threads(1)       # the machine's cores are shared; one thread also repeats exactly
-BUDGET = budget.current()
+BUDGET = notebook.start(
+    "the policies trained live below are tiny and every number they give means "
+    "nothing. The stored benchmark (data/results/bc_demos.json) is read, not "
+    "recomputed, so its table and plot are the real ones.")
 CHAPTER_START = time.perf_counter()
-print(f"budget: {BUDGET.name}")
-if BUDGET.is_smoke:
-    print("smoke budget: the policies trained live below are tiny and every number they give "
-          "means nothing. The stored benchmark (data/results/bc_demos.json) is read, not "
-          "recomputed, so its table and plot are the real ones.")
 
 HAVE = data.read_manifest()["tasks"]
 LIVE_TASK = "reacher4" if "reacher4" in HAVE else next(iter(HAVE))

@@ -30,9 +30,7 @@
 # 6. lists what the paper left open and what we chose.
 
 # %%
-import logging
 import time
-import warnings
 
 import matplotlib.pyplot as plt
 import numpy as np
@@ -41,20 +39,15 @@ import torch
 from IPython.display import display
 
 from dc_lesson import budget, data, softflow
+from dc_lesson import notebook
 from dc_lesson.results import read_result
 
-warnings.filterwarnings("ignore", message="IProgress not found")   # tqdm without ipywidgets
-logging.getLogger("absl").setLevel(logging.ERROR)
-
-torch.set_num_threads(1)       # the machine's cores are shared; one thread also repeats exactly
-BUDGET = budget.current()
+BUDGET = notebook.start(
+    "the flows trained live below take a handful of gradient steps and every number "
+    "and picture they give means nothing. The speed benchmark "
+    "(data/results/bench_softflow.json) is read, not recomputed, so its table is the "
+    "real one.")
 CHAPTER_START = time.perf_counter()
-print(f"budget: {BUDGET.name}")
-if BUDGET.is_smoke:
-    print("smoke budget: the flows trained live below take a handful of gradient steps and "
-          "every number and picture they give means nothing. The speed benchmark "
-          "(data/results/bench_softflow.json) is read, not recomputed, so its table is the "
-          "real one.")
 
 # The chapter's sizes per budget (budget.py has no SoftFlow fields yet, so they live here).
 SIZES = {
