@@ -33,14 +33,15 @@ import numpy as np
 
 from dc_lesson import bc as _bc
 from dc_lesson import data as _data
+from dc_lesson import evaluation as _evaluation
 from dc_lesson import metrics as _metrics
 from dc_lesson import rollout as _rollout
 from dc_lesson import tasks as _tasks
 
 # The demonstrations use seed 0 and the manifest's expert and random evaluations seeds 1 and 2;
 # BC's evaluation episodes come from a seed of their own.
-EVAL_SEED = 1000
-MEASURES = ("scaled_return", "return", "emd", "kl", "rkl")
+EVAL_SEED = _evaluation.EVAL_SEED
+MEASURES = _evaluation.MEASURES
 
 
 class BenchInputError(ValueError):
@@ -73,25 +74,18 @@ def run_one(task: str, n_demos: int, seed: int, eval_episodes: int, *,
     t0 = time.perf_counter()
     policy, log = _bc.train_bc(demos, config, progress=False)
     t1 = time.perf_counter()
-    trajs = _rollout.collect(task, policy, eval_episodes, seed=eval_seed, progress=False)
-    t2 = time.perf_counter()
-    scaled, _ = _metrics.scaled_return(task, trajs)
-    learner = np.concatenate([t.mode_features[:-1] for t in trajs])
-    measures = _metrics.compare(reference.mode_features, learner, n_max=emd_n_max, seed=0)
-    t3 = time.perf_counter()
-    returns = _rollout.returns(trajs)
-    multi = len(_tasks.spec(task).modes) > 1
+    ev = _evaluation.evaluate_policy(task, policy, reference, n_episodes=eval_episodes,
+                                     seed=eval_seed, emd_n_max=emd_n_max)
     best = log[policy.meta["best_epoch"] - 1]
     return {"task": task, "n_demos": int(n_demos), "seed": int(seed),
-            "scaled_return": scaled, "return": float(returns.mean()),
-            "return_std": float(returns.std()), "returns": [round(float(r), 3) for r in returns],
-            **measures,
-            "mode_shares": _metrics.mode_shares(task, trajs) if multi else None,
+            **{k: ev[k] for k in ("scaled_return", "return", "return_std", "returns", "emd",
+                                  "kl", "rkl", "mode_shares")},
             "train_episodes": len(policy.meta["train_episodes"]),
             "val_episodes": len(policy.meta["val_episodes"]),
             "best_epoch": policy.meta["best_epoch"], "epochs_run": policy.meta["epochs_run"],
             "best_val_nll": best["val_nll"], "train_nll_at_best": best["train_nll"],
-            "train_seconds": t1 - t0, "eval_seconds": t2 - t1, "measure_seconds": t3 - t2}
+            "train_seconds": t1 - t0, "eval_seconds": ev["eval_seconds"],
+            "measure_seconds": ev["measure_seconds"]}
 
 
 def summarise(runs: list[dict]) -> list[dict]:

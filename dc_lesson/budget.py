@@ -29,6 +29,12 @@ class Budget:
     bc_seeds: tuple[int, ...]        # BC training seeds per demonstration count
     bc_eval_episodes: int            # fresh episodes each BC policy is evaluated on
     bc_max_epochs: int               # BC's epoch limit (early stopping usually ends sooner)
+    # The imitation protocol shared by GAIL and DC (chapters 02 and 04, `bench gail|dc`): every
+    # learner gets the same demonstrations, seeds, environment interactions and evaluation.
+    il_demos: int = 18               # demonstrations per run (the paper's multi-mode setting)
+    il_seeds: tuple[int, ...] = (0, 1, 2)   # training seeds per task
+    il_steps: int = 300_000          # environment interactions per run (after the BC warm start)
+    il_eval_episodes: int = 50       # fresh episodes each learned policy is evaluated on
 
     @property
     def is_smoke(self) -> bool:
@@ -38,13 +44,16 @@ class Budget:
 PRESETS: dict[str, Budget] = {
     "smoke": Budget("smoke", tour_episodes=2, video_steps=20, bench_steps=300,
                     bc_demo_counts=(2, 4), bc_seeds=(0,), bc_eval_episodes=2,
-                    bc_max_epochs=3),
+                    bc_max_epochs=3, il_demos=4, il_seeds=(0,), il_steps=4096,
+                    il_eval_episodes=2),
     "lesson": Budget("lesson", tour_episodes=10, video_steps=150, bench_steps=8000,
                      bc_demo_counts=(4, 11, 18, 25), bc_seeds=(0, 1, 2, 3, 4),
-                     bc_eval_episodes=50, bc_max_epochs=200),
+                     bc_eval_episodes=50, bc_max_epochs=200, il_demos=18,
+                     il_seeds=(0, 1, 2), il_steps=300_000, il_eval_episodes=50),
     "paper": Budget("paper", tour_episodes=50, video_steps=400, bench_steps=32000,
                     bc_demo_counts=(4, 11, 18, 25), bc_seeds=tuple(range(10)),
-                    bc_eval_episodes=50, bc_max_epochs=1000),
+                    bc_eval_episodes=50, bc_max_epochs=1000, il_demos=18,
+                    il_seeds=(0, 1, 2, 3, 4), il_steps=1_000_000, il_eval_episodes=50),
 }
 
 
