@@ -299,5 +299,31 @@ def train_bc(demos_or_trajectories, config: BCConfig = BCConfig(), progress: boo
     return policy, log
 
 
-__all__ = ["BCConfig", "bc_loss", "bc_step", "episodes", "evaluate", "split_episodes",
-           "train_bc"]
+# -- the warm start of GAIL and DC ----------------------------------------------------------------
+
+WARM_START_LOG_STD = -0.5   # PPO's initial log-std (PPOConfig.log_std_init)
+
+
+def warm_start(task: str, n_demos: int, seed: int, *, max_epochs: int = 200,
+               log_std: float | None = WARM_START_LOG_STD, progress: bool = False):
+    """BC on the first ``n_demos`` demonstrations of ``task``, ready to start GAIL or DC.
+
+    Returns ``(policy, demos, log)``.  BC drives the log-std down to the spread of the
+    expert's actions around the fitted mean (about -3.7 on the reachers), far too little noise
+    for the on-policy updates that follow to explore with; so the log-std is reset to
+    ``log_std`` (PPO's initial value) unless it is None.  The mean network and the fitted,
+    frozen observation normaliser are kept: the mean action, which is what the evaluation runs,
+    is exactly BC's.
+    """
+    from dc_lesson import data as _data
+    demos = _data.load_demos(task, n_trajectories=n_demos)
+    policy, log = train_bc(demos, BCConfig(epochs=max_epochs, seed=seed), progress=progress)
+    if log_std is not None:
+        with torch.no_grad():
+            policy.log_std.fill_(float(log_std))
+    policy.meta = {**policy.meta, "warm_start_log_std": log_std}
+    return policy, demos, log
+
+
+__all__ = ["BCConfig", "WARM_START_LOG_STD", "bc_loss", "bc_step", "episodes", "evaluate",
+           "split_episodes", "train_bc", "warm_start"]

@@ -210,3 +210,13 @@ def test_bc_beats_the_random_policy_on_reacher1():
           f"training {trained - start:.1f} s, all {wall:.1f} s")
     assert test.pvalue < 0.05
     assert gain >= MIN_GAIN
+
+
+def test_warm_start_keeps_bcs_mean_and_resets_only_the_log_std():
+    from dc_lesson import bc
+    policy, demos, log = bc.warm_start("reacher1", 3, seed=0, max_epochs=2)
+    plain, _ = bc.train_bc(demos, bc.BCConfig(epochs=2, seed=0), progress=False)
+    obs = torch.from_numpy(demos.trajectories[0].observations[:50])
+    assert torch.equal(policy.distribution(obs).mean, plain.distribution(obs).mean)
+    assert torch.all(policy.log_std == bc.WARM_START_LOG_STD)
+    assert not torch.all(plain.log_std == bc.WARM_START_LOG_STD)
