@@ -35,6 +35,15 @@ class Budget:
     il_seeds: tuple[int, ...] = (0, 1, 2)   # training seeds per task
     il_steps: int = 300_000          # environment interactions per run (after the BC warm start)
     il_eval_episodes: int = 50       # fresh episodes each learned policy is evaluated on
+    # SoftFlow (chapter 03, `bench softflow-fit`); the defaults are the lesson sizes.
+    softflow_toy_points: int = 2000  # training points on the circle toy
+    softflow_toy_iters: int = 600    # gradient steps of each toy flow
+    softflow_toy_seeds: tuple[int, ...] = (0, 1, 2)   # seeds of the toy (and its sigma_max sweep)
+    softflow_states: int = 4000      # expert states each task flow is fitted on (a subsample)
+    softflow_iters: int = 1000       # gradient steps of each task flow
+    softflow_task_seeds: tuple[int, ...] = (0,)       # seeds of the task flows
+    softflow_sigma_maxes: tuple[float, ...] = (0.0, 0.03, 0.1, 0.3)  # the sweep (0: plain CNF)
+    softflow_grid: int = 60          # grid points per axis of a drawn 2-D density
 
     @property
     def is_smoke(self) -> bool:
@@ -45,7 +54,9 @@ PRESETS: dict[str, Budget] = {
     "smoke": Budget("smoke", tour_episodes=2, video_steps=20, bench_steps=300,
                     bc_demo_counts=(2, 4), bc_seeds=(0,), bc_eval_episodes=2,
                     bc_max_epochs=3, il_demos=4, il_seeds=(0,), il_steps=4096,
-                    il_eval_episodes=2),
+                    il_eval_episodes=2, softflow_toy_points=256, softflow_toy_iters=4,
+                    softflow_toy_seeds=(0,), softflow_states=256, softflow_iters=4,
+                    softflow_sigma_maxes=(0.0, 0.1), softflow_grid=25),
     "lesson": Budget("lesson", tour_episodes=10, video_steps=150, bench_steps=8000,
                      bc_demo_counts=(4, 11, 18, 25), bc_seeds=(0, 1, 2, 3, 4),
                      bc_eval_episodes=50, bc_max_epochs=200, il_demos=18,
@@ -53,7 +64,12 @@ PRESETS: dict[str, Budget] = {
     "paper": Budget("paper", tour_episodes=50, video_steps=400, bench_steps=32000,
                     bc_demo_counts=(4, 11, 18, 25), bc_seeds=tuple(range(10)),
                     bc_eval_episodes=50, bc_max_epochs=1000, il_demos=18,
-                    il_seeds=(0, 1, 2, 3, 4), il_steps=1_000_000, il_eval_episodes=50),
+                    il_seeds=(0, 1, 2, 3, 4), il_steps=1_000_000, il_eval_episodes=50,
+                    softflow_toy_points=4000, softflow_toy_iters=3000,
+                    softflow_toy_seeds=(0, 1, 2, 3, 4), softflow_states=8000,
+                    softflow_iters=4000, softflow_task_seeds=(0, 1, 2),
+                    softflow_sigma_maxes=(0.0, 0.01, 0.03, 0.1, 0.3, 1.0),
+                    softflow_grid=100),
 }
 
 
