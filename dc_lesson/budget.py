@@ -35,6 +35,11 @@ class Budget:
     il_seeds: tuple[int, ...] = (0, 1, 2)   # training seeds per task
     il_steps: int = 300_000          # environment interactions per run (after the BC warm start)
     il_eval_episodes: int = 50       # fresh episodes each learned policy is evaluated on
+    # The learning-rate sweep (the paper's Figure 4; `bench gail-lr`, later DC's): one rate for
+    # every optimiser of the learner, on one locomotion task, from the BC warm start.
+    lr_sweep_lrs: tuple[float, ...] = (1e-4, 3e-4, 1e-3, 3e-3)   # the learning rates
+    lr_sweep_seeds: tuple[int, ...] = (0, 1)   # training seeds per learning rate
+    lr_sweep_steps: int = 150_000    # environment interactions per run (half of il_steps)
     # SoftFlow (chapter 03, `bench softflow-fit`); the defaults are the lesson sizes.
     softflow_toy_points: int = 2000  # training points on the circle toy
     softflow_toy_iters: int = 600    # gradient steps of each toy flow
@@ -54,7 +59,8 @@ PRESETS: dict[str, Budget] = {
     "smoke": Budget("smoke", tour_episodes=2, video_steps=20, bench_steps=300,
                     bc_demo_counts=(2, 4), bc_seeds=(0,), bc_eval_episodes=2,
                     bc_max_epochs=3, il_demos=4, il_seeds=(0,), il_steps=4096,
-                    il_eval_episodes=2, softflow_toy_points=256, softflow_toy_iters=4,
+                    il_eval_episodes=2, lr_sweep_lrs=(1e-4, 3e-3), lr_sweep_seeds=(0,),
+                    lr_sweep_steps=2048, softflow_toy_points=256, softflow_toy_iters=4,
                     softflow_toy_seeds=(0,), softflow_states=256, softflow_iters=4,
                     softflow_sigma_maxes=(0.0, 0.1), softflow_grid=25),
     "lesson": Budget("lesson", tour_episodes=10, video_steps=150, bench_steps=8000,
@@ -65,6 +71,7 @@ PRESETS: dict[str, Budget] = {
                     bc_demo_counts=(4, 11, 18, 25), bc_seeds=tuple(range(10)),
                     bc_eval_episodes=50, bc_max_epochs=1000, il_demos=18,
                     il_seeds=(0, 1, 2, 3, 4), il_steps=1_000_000, il_eval_episodes=50,
+                    lr_sweep_seeds=(0, 1, 2), lr_sweep_steps=1_000_000,
                     softflow_toy_points=4000, softflow_toy_iters=3000,
                     softflow_toy_seeds=(0, 1, 2, 3, 4), softflow_states=8000,
                     softflow_iters=4000, softflow_task_seeds=(0, 1, 2),
