@@ -6,8 +6,11 @@
     dc-lesson demos --task NAME    roll out the expert of NAME into data/demos/
     dc-lesson bench rollout        rollout throughput against raw MuJoCo stepping
     dc-lesson bench softflow       SoftFlow's log_prob and training speed against a naive CNF
+    dc-lesson bench softflow-fit --out data/results/softflow_fit.json   what SoftFlow learns
     dc-lesson bench bc --out data/results/bc_demos.json   BC against the number of demos
     dc-lesson bench bc-drift --out data/results/bc_drift.json   BC's drift from the demos
+    dc-lesson bench gail --out data/results/gail_modes.json   BC and GAIL on the multi-mode tasks
+    dc-lesson bench gail-lr --out data/results/gail_lr.json   GAIL against the learning rate
 
 Sizes follow ``DC_LESSON_BUDGET`` (smoke | lesson | paper); see ``dc_lesson.budget``.
 """
@@ -99,6 +102,13 @@ def cmd_bench(args) -> int:
     if args.what == "softflow":
         from dc_lesson import bench_softflow
         return bench_softflow.main(["--save", args.out] if args.out else [])
+    if args.what == "softflow-fit":
+        from dc_lesson import bench_softflow, data
+        try:
+            return bench_softflow.fit_main(args.out, command=_command_line())
+        except (data.DemoError, bench_softflow.FitBenchError) as e:
+            print(f"dc-lesson: {e}", file=sys.stderr)
+            return 2
     if args.what == "rollout":
         steps = args.steps or budget.current().bench_steps
         bench.main(args.tasks or None, n_steps=steps, out=args.out, command=_command_line())
@@ -108,6 +118,14 @@ def cmd_bench(args) -> int:
             bench_bc.main(args.tasks or None, demo_counts=args.demos, seeds=args.seeds,
                           eval_episodes=args.episodes, max_epochs=args.epochs, out=args.out,
                           command=_command_line())
+        except (data.DemoError, bench_bc.BenchInputError) as e:
+            print(f"dc-lesson: {e}", file=sys.stderr)
+            return 2
+    elif args.what in ("gail", "gail-lr"):
+        from dc_lesson import bench_bc, bench_gail, data
+        try:
+            bench_gail.main(args.what, tasks=args.tasks, seeds=args.seeds, steps=args.steps,
+                            out=args.out, command=_command_line())
         except (data.DemoError, bench_bc.BenchInputError) as e:
             print(f"dc-lesson: {e}", file=sys.stderr)
             return 2
@@ -148,9 +166,11 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--episodes", type=int, default=10, help="evaluation episodes")
     s.set_defaults(func=cmd_expert)
     s = sub.add_parser("bench", help="benchmarks")
-    s.add_argument("what", choices=["rollout", "bc", "bc-drift", "softflow"])
+    s.add_argument("what", choices=["rollout", "bc", "bc-drift", "softflow", "softflow-fit", "gail",
+                                    "gail-lr"])
     s.add_argument("--tasks", nargs="*", default=None)
-    s.add_argument("--steps", type=int, default=None, help="control steps per task")
+    s.add_argument("--steps", type=int, default=None, help="rollout: control steps per task; gail, gail-lr: "
+                   "environment interactions per run")
     s.add_argument("--out", default=None, help="write the figures to this JSON file")
     s.add_argument("--demos", type=int, nargs="+", default=None,
                    help="bc: demonstration counts (default: the budget's)")
