@@ -182,13 +182,16 @@ def bc_loss(policy: GaussianPolicy, obs, act) -> dict[str, torch.Tensor]:
 
 
 def bc_step(policy: GaussianPolicy, optimizer: torch.optim.Optimizer, obs, act,
-            max_grad_norm: float | None = None) -> dict[str, float]:
+            max_grad_norm: float | None = None,
+            extra_loss=None) -> dict[str, float]:
     """One gradient step of Eq. 1 on a batch of pairs; returns the terms of :func:`bc_loss`
     (before the step) and the gradient norm.  DC's Algorithm 2 calls this on expert plus
-    learner pairs."""
+    learner pairs; ``extra_loss()``, if given, is added to the NLL (consensus ADMM's proximal
+    term)."""
     terms = bc_loss(policy, obs, act)
     optimizer.zero_grad()
-    terms["nll"].backward()
+    loss = terms["nll"] if extra_loss is None else terms["nll"] + extra_loss()
+    loss.backward()
     params = [p for group in optimizer.param_groups for p in group["params"]]
     # clip_grad_norm_ with an infinite bound measures the norm without changing the gradient.
     grad_norm = torch.nn.utils.clip_grad_norm_(

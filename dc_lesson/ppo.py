@@ -295,9 +295,12 @@ def explained_variance(predictions: torch.Tensor, targets: torch.Tensor) -> floa
 
 def ppo_update(policy: GaussianPolicy, value_fn: ValueNetwork, optimizer: torch.optim.Optimizer,
                batch: Batch, config: PPOConfig,
-               generator: torch.Generator | None = None) -> dict:
+               generator: torch.Generator | None = None,
+               extra_loss: Callable[[], torch.Tensor] | None = None) -> dict:
     """``n_epochs`` passes of minibatch gradient steps on one batch; returns the logged terms
-    (means over the minibatches).  ``generator`` draws the minibatch order."""
+    (means over the minibatches).  ``generator`` draws the minibatch order; ``extra_loss()``,
+    if given, is added to every minibatch's loss (consensus ADMM's proximal term in
+    :mod:`dc_lesson.dc`)."""
     if batch.advantages is None or batch.returns is None:
         raise ValueError("set batch.advantages and batch.returns (from compute_gae) first")
     # From here on time and environment do not matter: every step is one sample.
@@ -328,6 +331,8 @@ def ppo_update(policy: GaussianPolicy, value_fn: ValueNetwork, optimizer: torch.
             v_loss = value_loss(value_fn(obs[idx]), old_values[idx], targets[idx],
                                 config.clip_coef if config.clip_vloss else None)
             loss = pg_loss - config.ent_coef * entropy + config.vf_coef * v_loss
+            if extra_loss is not None:
+                loss = loss + extra_loss()
 
             optimizer.zero_grad()
             loss.backward()

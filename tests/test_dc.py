@@ -1,0 +1,177 @@
+"""Distributional Cloning: the update's algebra, the switches, determinism and resume."""
+
+import copy
+import dataclasses
+
+import numpy as np
+import pytest
+import torch
+
+from dc_lesson import bc, dc, ppo
+from dc_lesson.policies import PolicyFileError
+
+TASK = "reacher1"
+TINY = dc.DCConfig(loops=2, iterations=2, n_envs=2, n_steps=40, flow_states=200,
+                   flow_iterations=4, flow_refit_iterations=3, flow_hidden=(16, 16),
+                   bc_steps=2, bc_batch_size=32, ppo_epochs=2, ppo_minibatches=4, seed=3)
+
+
+@pytest.fixture(scope="module")
+def start():
+    torch.set_num_threads(1)
+    policy, demos, _ = bc.warm_start(TASK, 3, seed=0, max_epochs=3)
+    return policy, demos
+
+
+def _fixture_learner(start, config):
+    policy, demos = start
+    policy = copy.deepcopy(policy)
+    learner = dc.make_learner(policy, config, policy.obs_dim)
+    envs = ppo.EnvBatch(TASK, config.n_envs, seed=5)
+    gen = torch.Generator().manual_seed(11)
+    dc.copy_into(learner.pi_prime, learner.pi)
+    batch = ppo.collect_batch(envs, learner.pi_prime, learner.value_fn, config.n_steps, gen)
+    rewards = torch.rand(batch.env_rewards.shape, generator=gen)
+    obs, act = dc.expert_pairs(demos)
+    return learner, batch, rewards, obs, act, gen
+
+
+def test_averaging_is_the_exact_elementwise_mean_and_leaves_the_normaliser_alone(start):
+    a, b = copy.deepcopy(start[0]), copy.deepcopy(start[0])
+    with torch.no_grad():
+        for p in b.parameters():
+            p.add_(torch.randn_like(p))
+        b.obs_norm.mean.add_(5.0)       # a different normaliser must not leak into a
+    pa, pb = [p.clone() for p in a.parameters()], [p.clone() for p in b.parameters()]
+    norm_before = a.obs_norm.mean.clone()
+    dc.average_into(a, b, average_log_std=True)
+    for p, x, y in zip(a.parameters(), pa, pb):
+        assert torch.equal(p, (x + y) * 0.5)
+    assert torch.equal(a.obs_norm.mean, norm_before)
+
+    c = copy.deepcopy(start[0])
+    pc = dc.flat(dc.policy_parameters(c, False)).clone()
+    dc.average_into(c, b, average_log_std=False)
+    assert torch.equal(c.log_std, b.log_std)                          # z takes pi''s log-std
+    assert torch.allclose(dc.flat(dc.policy_parameters(c, False)),
+                          (pc + dc.flat(dc.policy_parameters(b, False))) / 2)
+
+
+def test_with_ppo_off_an_iteration_is_a_bc_step_at_half_the_learning_rate(start):
+    config = dataclasses.replace(TINY, ppo_step=False, bc_steps=1)
+    learner, batch, rewards, obs, act, gen = _fixture_learner(start, config)
+    ref = copy.deepcopy(learner.pi)
+    ref_opt = torch.optim.AdamW(ref.parameters(), lr=config.lr / 2, eps=1e-5,
+                                weight_decay=config.weight_decay)
+    ref_gen = torch.Generator()
+    ref_gen.set_state(gen.get_state())
+    o, a = dc.sample_bc_pairs(obs, act, batch, config, ref_gen)
+    bc.bc_step(ref, ref_opt, o, a, config.max_grad_norm)
+
+    dc.admm_iteration(learner, batch, rewards, obs, act, config, gen)
+    moved = (dc.flat(ref.parameters()) - dc.flat(start[0].parameters())).abs().max()
+    assert moved > 1e-5   # the step did something
+    assert torch.allclose(dc.flat(learner.pi.parameters()), dc.flat(ref.parameters()),
+                          atol=1e-6, rtol=0)
+
+
+def test_with_bc_off_an_iteration_is_a_ppo_step_averaged_with_its_start(start):
+    config = dataclasses.replace(TINY, bc_step=False)
+    learner, batch, rewards, obs, act, gen = _fixture_learner(start, config)
+    start_params = dc.flat(learner.pi.parameters()).clone()
+    ref_pi, ref_v = copy.deepcopy(learner.pi_prime), copy.deepcopy(learner.value_fn)
+    ref_opt = torch.optim.AdamW([{"params": list(ref_pi.parameters()),
+                                  "weight_decay": config.weight_decay},
+                                 {"params": list(ref_v.parameters()), "weight_decay": 0.0}],
+                                lr=config.lr, eps=1e-5)
+    ref_batch = copy.deepcopy(batch)
+    ref_batch.advantages, ref_batch.returns = ppo.compute_gae(
+        rewards, batch.values, batch.next_values, batch.dones, config.gamma, config.gae_lambda)
+    ref_gen = torch.Generator()
+    ref_gen.set_state(gen.get_state())
+    ppo.ppo_update(ref_pi, ref_v, ref_opt, ref_batch, config.ppo_config(), ref_gen)
+
+    dc.admm_iteration(learner, batch, rewards, obs, act, config, gen)
+    expected = (start_params + dc.flat(ref_pi.parameters())) / 2
+    assert not torch.allclose(expected, start_params, atol=1e-5)
+    assert torch.allclose(dc.flat(learner.pi.parameters()), expected, atol=1e-6, rtol=0)
+    assert torch.equal(dc.flat(learner.pi_prime.parameters()), dc.flat(ref_pi.parameters()))
+
+
+def test_ppo_old_log_probabilities_are_those_of_pi_at_the_iteration_start(start):
+    learner, batch, *_ = _fixture_learner(start, TINY)
+    obs = batch.obs.reshape(-1, batch.obs.shape[-1])
+    act = batch.actions.reshape(-1, batch.actions.shape[-1])
+    with torch.no_grad():
+        assert torch.allclose(batch.logprobs.reshape(-1), learner.pi.log_prob(obs, act),
+                              atol=1e-5)
+
+
+def test_consensus_admm_keeps_the_duals_balanced_and_logs_residuals(start):
+    config = dataclasses.replace(TINY, update="admm", rho=0.5)
+    learner, batch, rewards, obs, act, gen = _fixture_learner(start, config)
+    row = dc.admm_iteration(learner, batch, rewards, obs, act, config, gen)
+    u1, u2 = learner.duals
+    # z = mean(x_i + u_i) and u_i += x_i - z make the scaled duals sum to zero.
+    assert torch.allclose(u1 + u2, torch.zeros_like(u1), atol=1e-6)
+    assert u1.abs().max() > 0
+    assert row["primal_residual"] > 0 and row["dual_residual"] > 0
+    # z is the average of the two copies plus their (old, zero) duals after one iteration.
+    x1 = dc.flat(dc.policy_parameters(learner.pi_bc))
+    x2 = dc.flat(dc.policy_parameters(learner.pi_prime))
+    assert torch.allclose(dc.flat(dc.policy_parameters(learner.pi)), (x1 + x2) / 2, atol=1e-6)
+
+
+def _params(policy):
+    return dc.flat(policy.parameters())
+
+
+def test_same_seed_same_run_and_another_seed_differs(start):
+    runs = [dc.train(TASK, start[1], copy.deepcopy(start[0]), cfg, progress=False)
+            for cfg in (TINY, TINY, dataclasses.replace(TINY, seed=4))]
+    assert torch.equal(_params(runs[0][0]), _params(runs[1][0]))
+    strip = lambda log: [{k: v for k, v in r.items() if "second" not in k} for r in log]
+    assert strip(runs[0][2]) == strip(runs[1][2])
+    assert not torch.equal(_params(runs[0][0]), _params(runs[2][0]))
+    kinds = [r["kind"] for r in runs[0][2]]
+    assert kinds == ["flow", "iteration", "iteration", "flow", "iteration", "iteration"]
+    assert runs[0][2][-1]["env_steps"] == TINY.env_steps(TASK)
+
+
+def test_a_run_interrupted_after_a_loop_resumes_identical(start, tmp_path):
+    ckpt = tmp_path / "dc.ckpt"
+    full, _, full_log = dc.train(TASK, start[1], copy.deepcopy(start[0]), TINY, progress=False)
+    part, _, part_log = dc.train(TASK, start[1], copy.deepcopy(start[0]), TINY, progress=False,
+                                 checkpoint=ckpt, stop_after_loop=0)
+    assert ckpt.exists() and len(part_log) == 3            # loop 0 only: flow + 2 iterations
+    resumed, _, log = dc.train(TASK, start[1], copy.deepcopy(start[0]), TINY, progress=False,
+                               checkpoint=ckpt)
+    assert torch.equal(_params(resumed), _params(full))
+    assert [r["env_steps"] for r in log] == [r["env_steps"] for r in full_log]
+
+    with pytest.raises(PolicyFileError, match="another configuration"):
+        dc.train(TASK, start[1], copy.deepcopy(start[0]), dataclasses.replace(TINY, lr=1e-3),
+                 progress=False, checkpoint=ckpt)
+    bad = tmp_path / "bad.ckpt"
+    bad.write_bytes(b"not a checkpoint")
+    with pytest.raises(PolicyFileError, match="bad.ckpt"):
+        dc.train(TASK, start[1], copy.deepcopy(start[0]), TINY, progress=False, checkpoint=bad)
+
+
+def test_reward_scale_maps_the_expert_median_to_one_and_far_states_to_zero():
+    logp = np.linspace(-10, 10, 1001)
+    scale = dc.RewardScale.from_expert(logp)
+    r = scale(torch.tensor([100.0, 0.0, -1e4]))
+    assert r[0] == 1 and r[2] == 0 and 0.4 < r[1] <= 1
+    assert scale.high == pytest.approx(0.0, abs=0.05)
+
+
+def test_bad_configurations_and_inputs_say_what_is_wrong(start):
+    with pytest.raises(ValueError, match="update must be one of"):
+        dc.DCConfig(update="sgd")
+    with pytest.raises(ValueError, match="reward must be one of"):
+        dc.DCConfig(reward="log")
+    with pytest.raises(ValueError, match="ppo_minibatches"):
+        dc.DCConfig(n_envs=3, n_steps=5, ppo_minibatches=4)
+    with pytest.raises(ValueError, match="demonstrations are of 'reacher1'"):
+        dc.train("reacher2", start[1], copy.deepcopy(start[0]), TINY, progress=False)
