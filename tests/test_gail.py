@@ -1,0 +1,267 @@
+"""GAIL: the discriminator learns and its reward prefers the expert, the reward forms by hand,
+GAIL beats a random policy on cartpole (permutation test), determinism, exact resume from a
+checkpoint, the frozen normaliser, clear errors, and the benchmark's small pieces."""
+
+import dataclasses
+import math
+import time
+
+import numpy as np
+import pytest
+import torch
+
+from dc_lesson import bench_gail, data, gail, ppo, rollout
+from dc_lesson.policies import GaussianPolicy, PolicyFileError
+
+TIMING = {"steps_per_second"}
+
+
+def _pairs(trajectories):
+    obs = np.concatenate([t.observations[:-1] for t in trajectories]).astype(np.float32)
+    act = np.concatenate([t.actions for t in trajectories]).astype(np.float32)
+    return torch.from_numpy(obs), torch.from_numpy(act)
+
+
+def _random_pairs(task, n_episodes, seed):
+    trajs = rollout.collect(task, rollout.RandomPolicy(task, seed=seed), n_episodes, seed=seed,
+                            progress=False)
+    return _pairs(trajs)
+
+
+# -- the discriminator and its reward ------------------------------------------------------------
+
+def test_reward_forms_match_their_formulas():
+    f = torch.linspace(-30, 30, 61)
+    d = torch.sigmoid(f.double())
+    mid = slice(20, 41)   # where 1 - D is representable in float64
+    torch.testing.assert_close(gail.reward_from_logit(f, "gail")[mid].double(),
+                               -torch.log1p(-d)[mid], rtol=1e-5, atol=1e-6)
+    torch.testing.assert_close(gail.reward_from_logit(f, "log_d").double(), torch.log(d),
+                               rtol=1e-5, atol=1e-6)
+    torch.testing.assert_close(gail.reward_from_logit(f, "logit"), f)
+    # The default reward is positive, rises with D and is finite even where D rounds to 1.
+    r = gail.reward_from_logit(f, "gail")
+    assert torch.all(r > 0) and torch.all(r[1:] > r[:-1]) and torch.isfinite(r).all()
+    with pytest.raises(ValueError, match="reward form"):
+        gail.reward_from_logit(f, "wgan")
+
+
+def test_discriminator_loss_falls_and_its_reward_prefers_expert_pairs():
+    e_obs, e_act = _pairs(data.load_demos("reacher1", n_trajectories=4).trajectories)
+    l_obs, l_act = _random_pairs("reacher1", 2, seed=5)           # the fixed learner batch
+    torch.manual_seed(0)
+    disc = gail.Discriminator(e_obs.shape[1], e_act.shape[1])
+    disc.fit_input_stats(e_obs, e_act)
+    opt = torch.optim.Adam(disc.parameters(), lr=1e-3)
+    g = torch.Generator().manual_seed(0)
+    with torch.no_grad():
+        before = gail.discriminator_loss(disc, e_obs, e_act, l_obs, l_act)
+    for _ in range(300):
+        ie = torch.randint(len(e_obs), (256,), generator=g)
+        il = torch.randint(len(l_obs), (256,), generator=g)
+        gail.discriminator_step(disc, opt, e_obs[ie], e_act[ie], l_obs[il], l_act[il])
+    with torch.no_grad():
+        after = gail.discriminator_loss(disc, e_obs, e_act, l_obs, l_act)
+    print(f"\ndiscriminator BCE {float(before['bce']):.3f} -> {float(after['bce']):.3f}; "
+          f"accuracy expert {float(after['acc_expert']):.2f}, learner "
+          f"{float(after['acc_learner']):.2f}")
+    assert float(before["bce"]) > 1.2                       # about 2 log 2 at the start
+    assert float(after["bce"]) < 0.5 * float(before["bce"])
+    assert float(after["acc_expert"]) > 0.8 and float(after["acc_learner"]) > 0.8
+    # On pairs it never saw: held-out expert demonstrations and fresh random-policy episodes.
+    he_obs, he_act = _pairs(data.load_demos("reacher1").trajectories[10:14])
+    hr_obs, hr_act = _random_pairs("reacher1", 2, seed=77)
+    with torch.no_grad():
+        r_expert = gail.reward_from_logit(disc(he_obs, he_act)).mean()
+        r_random = gail.reward_from_logit(disc(hr_obs, hr_act)).mean()
+    print(f"reward on held-out expert pairs {float(r_expert):.3f}, on random pairs "
+          f"{float(r_random):.3f}")
+    assert r_expert > 2 * r_random
+
+
+def test_discriminator_sees_clipped_standardised_actions_and_the_penalty_is_used():
+    torch.manual_seed(0)
+    disc = gail.Discriminator(3, 2)
+    obs, act = torch.randn(100, 3) * 4 + 1, torch.rand(100, 2) * 2 - 1
+    disc.fit_input_stats(obs, act)
+    x = disc.inputs(obs, act)
+    torch.testing.assert_close(x.mean(0), torch.zeros(5), atol=1e-5, rtol=0)
+    torch.testing.assert_close(x.std(0), torch.ones(5), atol=1e-5, rtol=0)
+    # An action beyond the bounds is scored as the action the environment applies.
+    torch.testing.assert_close(disc(obs[:3], torch.full((3, 2), 7.0)),
+                               disc(obs[:3], torch.ones(3, 2)))
+    plain = gail.discriminator_loss(disc, obs, act, obs + 1, act)
+    pen = gail.discriminator_loss(disc, obs, act, obs + 1, act, grad_penalty=10.0,
+                                  generator=torch.Generator().manual_seed(0))
+    assert float(plain["penalty"]) == 0 and float(pen["penalty"]) > 0
+    torch.testing.assert_close(pen["loss"], pen["bce"] + 10.0 * pen["penalty"])
+
+
+# -- runs ----------------------------------------------------------------------------------------
+
+def _tiny(seed=3, total_steps=512, **kw):
+    p = ppo.PPOConfig(n_envs=2, n_steps=64, n_epochs=2, n_minibatches=4,
+                      total_steps=total_steps)
+    return gail.GAILConfig(ppo=p, disc_steps=2, disc_batch=64, value_warmup=1, seed=seed, **kw)
+
+
+def _same_log(a, b):
+    np.testing.assert_equal([{k: v for k, v in r.items() if k not in TIMING} for r in a],
+                            [{k: v for k, v in r.items() if k not in TIMING} for r in b])
+
+
+def _same_state(a, b):
+    sa, sb = a.state_dict(), b.state_dict()
+    assert sa.keys() == sb.keys()
+    for k in sa:
+        assert torch.equal(sa[k], sb[k]), k
+
+
+@pytest.fixture(scope="module")
+def demos1():
+    return data.load_demos("reacher1", n_trajectories=3)
+
+
+def test_same_seed_same_gail_run(demos1):
+    runs = [gail.train("reacher1", _tiny(), demos1, progress=False) for _ in range(2)]
+    other = gail.train("reacher1", _tiny(seed=4), demos1, progress=False)
+    _same_log(runs[0][2], runs[1][2])
+    _same_state(runs[0][0], runs[1][0])
+    _same_state(runs[0][1], runs[1][1])
+    assert len(runs[0][2]) == 4 and runs[0][2][0]["policy_frozen"]
+    assert not torch.equal(runs[0][0].mean_net[0].weight, other[0].mean_net[0].weight)
+    for key in ("disc_loss", "acc_expert", "acc_learner", "reward_mean", "reward_std",
+                "steps_per_second", "episode_return", "policy_loss"):
+        assert key in runs[0][2][0]
+
+
+def test_checkpoint_resume_equals_an_uninterrupted_run(demos1, tmp_path):
+    # 1000-step horizon, 2 x 64 steps per iteration: 10 iterations cross an episode end, and the
+    # stop after iteration 3 falls mid-episode (the environments are restored by replay).
+    cfg = _tiny(total_steps=1280)
+    full_pi, full_d, full_log = gail.train("reacher1", cfg, demos1, progress=False)
+    path = tmp_path / "gail.ckpt"
+    gail.train("reacher1", cfg, demos1, progress=False, checkpoint=path, checkpoint_every=1,
+               callback=lambda row, pi, d: row["update"] == 3)
+    pi, d, log = gail.train("reacher1", cfg, demos1, progress=False, checkpoint=path)
+    _same_log(full_log, log)
+    _same_state(full_pi, pi)
+    _same_state(full_d, d)
+    # A checkpoint of another configuration is refused, naming the difference.
+    with pytest.raises(PolicyFileError, match="disc_lr"):
+        gail.train("reacher1", dataclasses.replace(cfg, disc_lr=1e-3), demos1, progress=False,
+                   checkpoint=path)
+
+
+def test_the_warm_start_normaliser_stays_frozen(demos1):
+    from dc_lesson import bc
+    policy, demos, _ = bc.warm_start("reacher1", 3, seed=0, max_epochs=2)
+    before = {k: v.clone() for k, v in policy.state_dict().items()}
+    trained, _, _ = gail.train("reacher1", _tiny(), demos, policy=policy, progress=False)
+    assert trained is policy
+    after = trained.state_dict()
+    for k in ("obs_norm.mean", "obs_norm.var", "obs_norm.count"):
+        assert torch.equal(after[k], before[k]), k
+    # The weights did move: the policy was trained, its inputs' scale was not changed.
+    assert not torch.equal(after["mean_net.0.weight"], before["mean_net.0.weight"])
+
+
+def test_clear_errors_for_bad_configurations(demos1):
+    with pytest.raises(ValueError, match="reward_form"):
+        gail.GAILConfig(reward_form="wasserstein")
+    with pytest.raises(ValueError, match="disc_steps"):
+        gail.GAILConfig(disc_steps=0)
+    with pytest.raises(ValueError, match="disc_lr"):
+        gail.GAILConfig(disc_lr=0.0)
+    with pytest.raises(ValueError, match="grad_penalty"):
+        gail.GAILConfig(grad_penalty=-1.0)
+    with pytest.raises(ValueError, match="value_warmup"):
+        dataclasses.replace(_tiny(), value_warmup=4)     # 4 iterations in all
+    with pytest.raises(TypeError, match="PPOConfig"):
+        gail.GAILConfig(ppo={"lr": 1e-3})
+    with pytest.raises(ValueError, match="learning rate"):
+        gail.GAILConfig().with_lr(-1e-3)
+    with pytest.raises(ValueError, match="obs, act"):
+        gail.train("cartpole", _tiny(), demos1, progress=False)       # reacher demos
+    with pytest.raises(ValueError, match="policy"):
+        gail.train("reacher1", _tiny(), demos1, policy=GaussianPolicy(5, 1), progress=False)
+
+
+def test_with_lr_sets_every_learning_rate():
+    cfg = gail.GAILConfig().with_lr(3e-3)
+    assert cfg.ppo.lr == cfg.disc_lr == 3e-3 and cfg.ppo_config.lr == 3e-3
+    assert gail.GAILConfig(seed=5, entropy=0.01).ppo_config.seed == 5
+    assert gail.GAILConfig(entropy=0.01).ppo_config.ent_coef == 0.01
+
+
+# -- GAIL learns ---------------------------------------------------------------------------------
+
+# GAIL from scratch (no BC warm start, so the gain is GAIL's own) on cartpole: PPO's cartpole
+# settings from tests/test_ppo.py (no observation normaliser, lr 3e-3, gamma 0.98), 4
+# demonstrations as the expert's pairs, 60k interactions.
+LEARN = gail.GAILConfig(
+    ppo=ppo.PPOConfig(n_envs=8, n_steps=250, n_epochs=10, n_minibatches=8, lr=3e-3,
+                      gamma=0.98, norm_obs=False, total_steps=60_000),
+    disc_lr=1e-3, value_warmup=0, bc_warm_start=False, seed=0)
+MIN_GAIN = 250.0   # return over the random policy's (~350), on the 0..1000 scale
+
+
+def test_gail_improves_over_the_random_policy_on_cartpole():
+    from scipy import stats
+    start = time.perf_counter()
+    demos = data.load_demos("cartpole", n_trajectories=4)
+    policy, _, log = gail.train("cartpole", LEARN, demos, progress=False)
+    trained_s = time.perf_counter() - start
+    learned = rollout.returns(rollout.collect("cartpole", policy, 10, seed=2024,
+                                              progress=False))
+    random = rollout.returns(rollout.collect("cartpole", rollout.RandomPolicy("cartpole", 0),
+                                             10, seed=2024, progress=False))
+    test = stats.permutation_test((learned, random),
+                                  lambda x, y, axis: x.mean(axis) - y.mean(axis),
+                                  permutation_type="independent", alternative="greater",
+                                  n_resamples=9999, vectorized=True, rng=0)
+    gain = learned.mean() - random.mean()
+    print(f"\nGAIL cartpole: {LEARN.ppo.total_steps} steps in {trained_s:.0f} s; learned "
+          f"{learned.mean():.0f} ± {learned.std():.0f}, random {random.mean():.0f}; gain "
+          f"{gain:.0f}; p = {test.pvalue:.4f}; final discriminator accuracy expert "
+          f"{log[-1]['acc_expert']:.2f}, learner {log[-1]['acc_learner']:.2f}")
+    assert all(math.isfinite(r["disc_loss"]) for r in log)
+    assert test.pvalue < 0.05
+    assert gain >= MIN_GAIN
+
+
+# -- the benchmark's pieces ----------------------------------------------------------------------
+
+def test_bench_config_scales_down_for_smoke_runs():
+    cfg = bench_gail.gail_config(4096, seed=2)
+    assert cfg.ppo.n_updates >= 4 and cfg.value_warmup < cfg.ppo.n_updates and cfg.seed == 2
+    full = bench_gail.gail_config(300_000, seed=1, lr=1e-3)
+    assert full.ppo.batch_size == gail.GAILConfig().ppo.batch_size
+    assert full.ppo.lr == full.disc_lr == 1e-3 and full.ppo.total_steps == 300_000
+
+
+def test_features_round_trip_without_pickles(tmp_path):
+    arrays = {bench_gail.feature_key("reacher4", "GAIL", 0): np.random.rand(5, 2),
+              bench_gail.feature_key("reacher4", "GAIL", 1): np.random.rand(3, 2),
+              bench_gail.feature_key("reacher4", "expert"): np.random.rand(4, 2)}
+    bench_gail.save_features(bench_gail.features_path(tmp_path / "r.json"), arrays)
+    back = bench_gail.load_features(tmp_path / "r.json")
+    assert set(back) == set(arrays) and all(v.dtype == np.float32 for v in back.values())
+    assert bench_gail.pooled_features(back, "reacher4", "GAIL").shape == (8, 2)
+    with pytest.raises(KeyError):
+        bench_gail.pooled_features(back, "reacher4", "BC")
+    with pytest.raises(FileNotFoundError, match="bench gail"):
+        bench_gail.load_features(tmp_path / "missing.json")
+
+
+def test_summary_is_mean_and_sample_std_over_seeds():
+    def row(seed, v):
+        m = {"scaled_return": v, "return": v, "emd": v, "kl": v, "rkl": v,
+             "mode_shares": {"a": v, "b": 1 - v}}
+        return {"task": "t", "seed": seed, "BC": m, "GAIL": m}
+    s = bench_gail.summarise([row(0, 0.2), row(1, 0.4), row(2, 0.9)])
+    g = next(r for r in s if r["method"] == "GAIL")
+    assert g["emd_mean"] == pytest.approx(0.5)
+    assert g["emd_std"] == pytest.approx(np.std([0.2, 0.4, 0.9], ddof=1))
+    assert g["mode_shares_mean"]["b"] == pytest.approx(0.5)
+    assert "GAIL" in bench_gail.format_table(s)
