@@ -9,6 +9,9 @@
     dc-lesson bench softflow-fit --out data/results/softflow_fit.json   what SoftFlow learns
     dc-lesson bench bc --out data/results/bc_demos.json   BC against the number of demos
     dc-lesson bench bc-drift --out data/results/bc_drift.json   BC's drift from the demos
+    dc-lesson bench dc --out data/results/dc_modes.json   BC and DC on the multi-mode tasks
+    dc-lesson bench dc-ablation --out data/results/dc_ablation.json   loops; averaging vs ADMM
+    dc-lesson bench dc-lr --out data/results/dc_lr.json   DC's final return per learning rate
     dc-lesson bench gail --out data/results/gail_modes.json   BC and GAIL on the multi-mode tasks
     dc-lesson bench gail-lr --out data/results/gail_lr.json   GAIL against the learning rate
 
@@ -129,6 +132,16 @@ def cmd_bench(args) -> int:
         except (data.DemoError, bench_bc.BenchInputError) as e:
             print(f"dc-lesson: {e}", file=sys.stderr)
             return 2
+    elif args.what in ("dc", "dc-ablation", "dc-lr"):
+        from dc_lesson import bench_dc
+        if args.what == "dc":
+            bench_dc.run(args.tasks or bench_dc.TASKS, out=args.out, command=_command_line())
+        elif args.what == "dc-ablation":
+            bench_dc.run_ablation((args.tasks or ["reacher4"])[0], out=args.out,
+                                  command=_command_line())
+        else:
+            bench_dc.run_lr((args.tasks or [bench_dc.LR_TASK])[0], seeds=args.seeds,
+                            steps=args.steps, out=args.out, command=_command_line())
     elif args.what == "bc-drift":
         from dc_lesson import bench_bc, data
         b = budget.current()
@@ -167,7 +180,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.set_defaults(func=cmd_expert)
     s = sub.add_parser("bench", help="benchmarks")
     s.add_argument("what", choices=["rollout", "bc", "bc-drift", "softflow", "softflow-fit", "gail",
-                                    "gail-lr"])
+                                    "gail-lr", "dc", "dc-ablation", "dc-lr"])
     s.add_argument("--tasks", nargs="*", default=None)
     s.add_argument("--steps", type=int, default=None, help="rollout: control steps per task; gail, gail-lr: "
                    "environment interactions per run")
