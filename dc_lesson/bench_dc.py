@@ -262,17 +262,18 @@ def run_ablation(task: str = "reacher4", budget: _budget.Budget | None = None, *
     return record
 
 
-LR_TASK = "halfcheetah"
-LRS = (1e-4, 3e-4, 1e-3, 3e-3)
+LR_TASK = "halfcheetah"   # GAIL's sweep's task (bench_gail.LR_TASK)
 
 
-def run_lr(task: str = LR_TASK, lrs=LRS, budget: _budget.Budget | None = None, *,
+def run_lr(task: str = LR_TASK, lrs=None, budget: _budget.Budget | None = None, *,
            seeds=None, steps: int | None = None, out=None, command: str = "",
            threads: int = 1) -> dict:
-    """Figure 4 for DC: final scaled return for each learning rate (both copies' AdamW)."""
+    """Figure 4 for DC: final scaled return for each learning rate (both copies' AdamW), with
+    the sweep's sizes from the budget (``lr_sweep_*``, shared with GAIL's sweep)."""
     budget = budget or _budget.current()
-    seeds = tuple(seeds if seeds is not None else budget.il_seeds[:2])
-    steps = int(steps or budget.il_steps // 2)
+    lrs = tuple(lrs if lrs is not None else budget.lr_sweep_lrs)
+    seeds = tuple(seeds if seeds is not None else budget.lr_sweep_seeds)
+    steps = int(steps or budget.lr_sweep_steps)
     sweep_budget = dataclasses.replace(budget, il_steps=steps)
     old = torch.get_num_threads()
     torch.set_num_threads(threads)
@@ -308,5 +309,5 @@ def run_lr(task: str = LR_TASK, lrs=LRS, budget: _budget.Budget | None = None, *
     return record
 
 
-__all__ = ["DC_DEFAULTS", "LRS", "TASKS", "dc_config", "format_table", "run", "run_ablation",
+__all__ = ["DC_DEFAULTS", "LR_TASK", "TASKS", "dc_config", "format_table", "run", "run_ablation",
            "run_lr", "run_one", "summarise"]
