@@ -12,7 +12,8 @@ environment interactions, ``il_eval_episodes`` evaluation episodes), it
    all the task's demonstrations, mode shares;
 4. keeps the learning curve (mean reward, return of pi''s finished episodes, parameter change)
    and the wall times; a subsample of each policy's mode features goes to an ``.npz`` beside
-   the JSON file, for the coverage plots.
+   the JSON file, for the coverage plots, in ``bench gail``'s format (methods ``BC``, ``DC``
+   and ``expert``; :func:`load_features`).
 
 ``dc-lesson bench dc-ablation --out data/results/dc_ablation.json`` (:func:`run_ablation`), on
 one task: the loop-number ablation (the paper's Figure 3: L = 1..4 loops of a fixed number of
@@ -28,7 +29,6 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import pathlib
 import time
 
 import numpy as np
@@ -39,6 +39,8 @@ from dc_lesson import budget as _budget
 from dc_lesson import data as _data
 from dc_lesson import dc as _dc
 from dc_lesson import evaluation as _evaluation
+# One format for the stored mode features of every imitation benchmark (keys task__method__seedN).
+from dc_lesson.bench_gail import feature_key, features_path, load_features, save_features
 from dc_lesson.results import write_result
 
 TASKS = ("reacher4", "reacher2", "halfcheetah2")
@@ -98,7 +100,7 @@ def run_one(task: str, seed: int, budget: _budget.Budget, reference: _data.Demon
         bc_row = {k: ev[k] for k in MEASURED}
         bc_row["seconds"] = time.perf_counter() - t0
         if features is not None:
-            features[f"{task}/bc/seed{seed}"] = _subsample(ev["features"], seed=seed)
+            features[feature_key(task, "BC", seed)] = _subsample(ev["features"], seed=seed)
         if bc_cache is not None:
             bc_cache[key] = (_copy(policy), demos, bc_row)
     config = dc_config(budget, seed=seed, **(config_overrides or {}))
@@ -108,9 +110,9 @@ def run_one(task: str, seed: int, budget: _budget.Budget, reference: _data.Demon
     ev = _evaluation.evaluate_policy(task, pi, reference, n_episodes=budget.il_eval_episodes,
                                      keep_features=True)
     if features is not None:
-        tag = "dc" if not config_overrides else "dc_" + "_".join(
-            f"{k}{v}" for k, v in sorted(config_overrides.items()))
-        features[f"{task}/{tag}/seed{seed}"] = _subsample(ev["features"], seed=seed)
+        tag = "DC" if not config_overrides else "DC_" + "_".join(
+            f"{k}-{v}" for k, v in sorted(config_overrides.items()))
+        features[feature_key(task, tag, seed)] = _subsample(ev["features"], seed=seed)
     flows = [r for r in log if r["kind"] == "flow"]
     return {"task": task, "seed": int(seed), "bc": bc_row,
             "dc": {**{k: ev[k] for k in MEASURED}, "train_seconds": t2 - t1,
@@ -156,17 +158,14 @@ def _reference_features(tasks, features: dict) -> dict:
     refs = {}
     for task in tasks:
         refs[task] = _data.load_demos(task)
-        features[f"{task}/expert"] = _subsample(refs[task].mode_features)
+        features[feature_key(task, "expert")] = _subsample(refs[task].mode_features)
     return refs
 
 
 def _write(out, record: dict, features: dict, command: str, seeds) -> None:
+    if features:   # first, so a result file never points at missing features
+        save_features(features_path(out), features)
     path = write_result(out, record, command=command, seeds=list(seeds))
-    if features:
-        npz = pathlib.Path(path).with_suffix(".npz")
-        tmp = npz.with_name(f".{npz.stem}.tmp.npz")
-        np.savez_compressed(tmp, **features)
-        tmp.replace(npz)
     print(f"wrote {path}")
 
 
@@ -309,5 +308,5 @@ def run_lr(task: str = LR_TASK, lrs=None, budget: _budget.Budget | None = None, 
     return record
 
 
-__all__ = ["DC_DEFAULTS", "LR_TASK", "TASKS", "dc_config", "format_table", "run", "run_ablation",
+__all__ = ["DC_DEFAULTS", "load_features", "LR_TASK", "TASKS", "dc_config", "format_table", "run", "run_ablation",
            "run_lr", "run_one", "summarise"]
