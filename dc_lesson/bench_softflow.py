@@ -295,9 +295,11 @@ CURVE_POINTS = 10         # held-out NLL checkpoints per fit (plus the untrained
 # Where the mode feature sits in the observation.  reacher4's fingertip x-y IS observation 4:6;
 # halfcheetah2's mode feature (the torso's subtree linear velocity, a sensor) is not in the
 # observation, so the root's forward velocity qvel[0] (observation 8) stands in for it
-# (correlation 0.995 on the demonstrations, recorded in the result).
-FEATURE_IN_STATE = {"reacher4": (slice(4, 6), "fingertip x, y (observation 4:6)"),
-                    "halfcheetah2": (slice(8, 9), "root forward velocity (observation 8)")}
+# (correlation 0.995 on the demonstrations, recorded in the result).  The third entry is the
+# distance from a mode's centre (the median feature of the training states at that mode) within
+# which a state counts as AT the mode: 2 cm for the fingertip, 1.5 m/s for the speed.
+FEATURE_IN_STATE = {"reacher4": (slice(4, 6), "fingertip x, y (observation 4:6)", 0.02),
+                    "halfcheetah2": (slice(8, 9), "root forward velocity (observation 8)", 1.5)}
 
 
 class FitBenchError(ValueError):
@@ -384,10 +386,11 @@ def _mean_std(values) -> dict:
     return {"mean": float(v.mean()), "std": float(v.std()), "per_seed": v.tolist()}
 
 
-def toy_run(seed: int, sigma_maxes, points: int, iterations: int, grid: int = 0) -> list[dict]:
+def toy_run(seed: int, sigma_maxes, points: int, iterations: int, grid: int = 0,
+            keep_flows: bool = False) -> list[dict]:
     """One seed of the toy: a flow per sigma_max (0: plain CNF) on ``points`` clean circle
-    points; rows with held-out NLL per test noise, curves and (``grid`` > 0) the density on a
-    ``grid`` x ``grid`` square [-1.6, 1.6]^2."""
+    points; rows with held-out NLL per test noise, curves, (``grid`` > 0) the density on a
+    ``grid`` x ``grid`` square [-1.6, 1.6]^2 and (``keep_flows``) the flow itself."""
     train = circle(points, seed=seed)
     tests = {f"{nz:g}": circle(TOY_TEST_POINTS, seed=10_000 + seed, noise=nz)
              for nz in TOY_TEST_NOISES}
@@ -403,6 +406,8 @@ def toy_run(seed: int, sigma_maxes, points: int, iterations: int, grid: int = 0)
             pts = np.stack(np.meshgrid(g, g), -1).reshape(-1, 2)
             row["density"] = flow.log_prob(pts).exp().numpy().reshape(grid, grid)
             row["grid"] = g
+        if keep_flows:
+            row["flow"] = flow
         rows.append(row)
     return rows
 
@@ -440,7 +445,10 @@ def task_data(task: str, n_states: int, seed: int = 0) -> dict:
     train = pool[np.sort(rng.choice(len(pool), n_states, replace=False))]
     at_mode = {spec.modes[demos.modes[i]]: demos.trajectories[i].observations[SETTLE_STEPS:-1]
                for i in held_eps}
-    sl, feature_name = FEATURE_IN_STATE[task]
+    sl, feature_name, tol = FEATURE_IN_STATE[task]
+    centres = np.stack([np.median(np.concatenate([
+        demos.trajectories[i].observations[SETTLE_STEPS:-1, sl] for i in train_eps
+        if demos.modes[i] == m]), axis=0) for m in range(len(spec.modes))])
     mf = demos.mode_features[:, 0]
     corr = float(np.corrcoef(demos.observations[:, sl][:, 0], mf)[0, 1])
     env_task = tasks.load(task).task
@@ -450,7 +458,7 @@ def task_data(task: str, n_states: int, seed: int = 0) -> dict:
     perturbed = (held + TASK_TEST_NOISE * std * noise).astype(np.float32)
     return {"task": task, "train": train, "pool": pool, "held_out": held,
             "perturbed": perturbed, "at_mode": at_mode, "modes": spec.modes, "feature": sl,
-            "feature_name": feature_name,
+            "feature_name": feature_name, "centres": centres, "tolerance": tol,
             "feature_corr": corr, "classify": env_task.classify_mode,
             "train_episodes": train_eps, "held_episodes": held_eps}
 
@@ -461,6 +469,12 @@ def _held_out_sets(d: dict) -> dict:
 
 def _shares(classes: np.ndarray, n_modes: int) -> list[float]:
     return (np.bincount(classes, minlength=n_modes)[:n_modes] / max(1, len(classes))).tolist()
+
+
+def _at_mode_shares(d: dict, features: np.ndarray) -> list[float]:
+    """Per mode, the share of ``features`` within ``d["tolerance"]`` of the mode's centre."""
+    dist = np.linalg.norm(features[:, None, :] - d["centres"][None], axis=-1)
+    return (dist < d["tolerance"]).mean(0).tolist()
 
 
 def task_run(d: dict, sigma_max: float, iterations: int, seed: int,
@@ -482,6 +496,7 @@ def task_run(d: dict, sigma_max: float, iterations: int, seed: int,
             "mode_logp": per_mode,
             "sample_finite_share": float(finite.mean()),
             "sample_mode_shares": _shares(d["classify"](feat[finite]), n_modes),
+            "sample_at_mode_shares": _at_mode_shares(d, feat[finite]),
             "sample_features": feat}
 
 
@@ -569,6 +584,8 @@ def softflow_fit_benchmark(b=None, tasks=FIT_TASKS, log=print) -> tuple[dict, di
                "heldout_states": len(d["held_out"]), "modes": list(d["modes"]),
                "feature": d["feature_name"], "feature_corr_with_mode_feature": d["feature_corr"],
                "data_mode_shares": _shares(d["classify"](data_feat), n_modes),
+               "data_at_mode_shares": _at_mode_shares(d, data_feat),
+               "mode_centres": d["centres"].tolist(), "at_mode_tolerance": d["tolerance"],
                "settle_steps": SETTLE_STEPS, "test_noise": TASK_TEST_NOISE, **base, "runs": []}
         levels = compared if task == SWEEP_TASK else (0.1,)
         for seed in b.softflow_task_seeds:
@@ -580,7 +597,9 @@ def softflow_fit_benchmark(b=None, tasks=FIT_TASKS, log=print) -> tuple[dict, di
                 log(f"{task} seed {seed} {row['model']:26s} held-out NLL " + ", ".join(
                     f"{k}: {v:.2f}" for k, v in row["heldout_nll"].items()) +
                     f"; sample mode shares {np.round(row['sample_mode_shares'], 2).tolist()}"
-                    f" (data {np.round(res['data_mode_shares'], 2).tolist()})"
+                    f" (data {np.round(res['data_mode_shares'], 2).tolist()}), at the modes "
+                    f"{np.round(row['sample_at_mode_shares'], 2).tolist()}"
+                    f" (data {np.round(res['data_at_mode_shares'], 2).tolist()})"
                     f"  ({row['seconds']:.0f} s)")
         if d["feature"].stop - d["feature"].start == 1:   # 1-D feature: density curves
             lo, hi = np.percentile(data_feat, [0.1, 99.9])

@@ -478,7 +478,11 @@ def _standard_normal_logpdf(z: torch.Tensor) -> torch.Tensor:
 
 def _check_states(states, dim: int | None, what: str) -> torch.Tensor:
     """(N, dim) float32 tensor of finite states, or a ValueError that says what is wrong."""
-    x = torch.as_tensor(np.asarray(states) if not torch.is_tensor(states) else states)
+    if not torch.is_tensor(states):
+        states = np.asarray(states)
+        if not states.flags.writeable:   # read-only demonstration arrays: torch warns on them
+            states = states.copy()
+    x = torch.as_tensor(states)
     if x.ndim != 2 or (dim is not None and x.shape[1] != dim) or len(x) == 0:
         want = f"(N, {dim})" if dim is not None else "(N, dim)"
         raise ValueError(f"{what} must have shape {want} with N >= 1, got {tuple(x.shape)}")

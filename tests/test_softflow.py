@@ -325,3 +325,90 @@ def test_same_seed_same_numbers():
     torch.manual_seed(123)
     sf.fit(x, cfg, progress=False)
     assert torch.equal(torch.rand(3), expected)
+
+
+# -- the fitting benchmark (`dc-lesson bench softflow-fit`) --------------------------------------
+
+def test_fit_with_curve_is_fit_plus_a_held_out_curve():
+    from dc_lesson import bench_softflow as bs
+    train, test = bs.circle(300, seed=0), bs.circle(200, seed=1, noise=0.05)
+    cfg = dataclasses.replace(FAST, iterations=12)
+    flow, log, curve, seconds = bs.fit_with_curve(train, cfg, {"noisy": test}, checks=4)
+    assert curve["iteration"] == [0, 3, 6, 9, 12] and len(curve["noisy"]) == 5
+    untrained, _ = sf.fit(train, dataclasses.replace(cfg, iterations=0), progress=False)
+    assert curve["noisy"][0] == pytest.approx(-float(untrained.log_prob(test).mean()))
+    assert curve["noisy"][-1] == pytest.approx(-float(flow.log_prob(test).mean()))
+    # the same flow as a plain fit: the stored toy rows are what `softflow.fit` gives
+    plain, plain_log = sf.fit(train, cfg, progress=False)
+    for k, v in plain.state_dict().items():
+        assert torch.equal(v, flow.state_dict()[k]), k
+    assert [r["nll"] for r in log] == [r["nll"] for r in plain_log]
+    assert seconds == pytest.approx(sum(r["seconds"] for r in log))   # training time only
+
+
+def test_sigma_max_zero_is_the_plain_cnf_and_bad_bench_input_is_refused():
+    from dc_lesson import bench_softflow as bs
+    assert bs.toy_config(0.0).noise_conditioned is False
+    assert bs.toy_config(0.3).noise_conditioned and bs.toy_config(0.3).sigma_max == 0.3
+    assert bs.task_config(0.0).noise_conditioned is False
+    assert bs.model_name(0.0) == "plain CNF" and bs.model_name(0.1) == "SoftFlow sigma_max=0.1"
+    with pytest.raises(bs.FitBenchError, match="sigma_max must be >= 0"):
+        bs.toy_config(-0.1)
+    with pytest.raises(bs.FitBenchError, match="n >= 1"):
+        bs.circle(0, seed=0)
+    with pytest.raises(bs.FitBenchError, match="knows the tasks"):
+        bs.task_data("cartpole", 100)
+    with pytest.raises(bs.FitBenchError, match="asked for 1000000000 training states"):
+        bs.task_data("reacher4", 10 ** 9)
+
+
+def test_the_held_out_demonstrations_are_the_last_of_each_mode():
+    from types import SimpleNamespace
+
+    from dc_lesson import bench_softflow as bs
+    demos = SimpleNamespace(task="fake", modes=np.array([0, 1, 0, 2, 1, 0, 2]))
+    train, held = bs._split_by_mode(demos, 3)
+    assert held == [4, 5, 6] and train == [0, 1, 2, 3]
+    with pytest.raises(bs.FitBenchError, match="every mode"):
+        bs._split_by_mode(SimpleNamespace(task="fake", modes=np.array([0, 0, 1])), 2)
+    d = bs.task_data("halfcheetah2", 500)
+    assert len(d["train"]) == 500 and len(d["held_episodes"]) == 2
+    assert not set(d["held_episodes"]) & set(d["train_episodes"])
+    assert set(d["at_mode"]) == {"forward", "backward"}
+    # the stand-in for the mode feature read off a state agrees with the mode feature
+    assert d["feature_corr"] > 0.99
+    assert (d["classify"](d["at_mode"]["backward"][:, d["feature"]]) == 1).mean() > 0.95
+
+
+def test_bench_softflow_fit_writes_the_result_and_its_arrays(tmp_path, monkeypatch):
+    from dc_lesson import budget, cli
+    from dc_lesson import bench_softflow as bs
+    from dc_lesson.results import read_result
+    monkeypatch.setenv(budget.ENV_VAR, "smoke")
+    out = tmp_path / "softflow_fit.json"
+    assert cli.main(["bench", "softflow-fit", "--out", str(out)]) == 0
+    res, arrays = read_result(out), bs.load_fit_arrays(out)
+    b = budget.get("smoke")
+    assert res["command"].startswith("dc-lesson ")
+    assert res["budget"] == "smoke" and res["seeds"] == [0] and res["revision"]
+    toy = res["toy"]
+    assert toy["sigma_maxes"] == [0.0, 0.1] and len(toy["runs"]) == 2
+    for s, row in toy["summary"].items():
+        runs = [r for r in toy["runs"] if r["sigma_max"] == float(s)]
+        for nz, v in row.items():
+            assert v["per_seed"] == [r["heldout_nll"][nz] for r in runs]
+    cnf, soft = toy["runs"]
+    assert toy["cnf_minus_softflow"]["0.05"]["per_seed"] == [
+        pytest.approx(cnf["heldout_nll"]["0.05"] - soft["heldout_nll"]["0.05"])]
+    assert arrays["toy_density_sigma_0.1"].shape == (b.softflow_grid, b.softflow_grid)
+    for task, dim, k in (("reacher4", 8, 2), ("halfcheetah2", 17, 1)):
+        t = res["tasks"][task]
+        assert t["state_dim"] == dim and t["train_states"] == b.softflow_states
+        assert sum(t["data_mode_shares"]) == pytest.approx(1.0)
+        assert all(sum(r["sample_mode_shares"]) == pytest.approx(1.0) for r in t["runs"])
+        assert arrays[f"{task}_samples_seed0_sigma_0.1"].shape == (bs.N_SAMPLES, k)
+        assert set(t["kde"]["mode_logp"]) == set(t["modes"])
+    assert [r["sigma_max"] for r in res["tasks"]["reacher4"]["runs"]] == [0.0, 0.1]
+    hc = res["tasks"]["halfcheetah2"]
+    grid = np.array(hc["feature_grid"])
+    assert np.trapezoid(hc["feature_kde_data"], grid) == pytest.approx(1.0, abs=0.02)
