@@ -288,7 +288,8 @@ TOY_TEST_POINTS = 1000
 FIT_TASKS = ("reacher4", "halfcheetah2")
 SWEEP_TASK = "reacher4"
 TASK_TEST_NOISE = 0.05    # perturbation of held-out states, in standardised units
-SETTLE_STEPS = 100        # a demonstration's states from this step on count as "at its mode"
+SETTLE_STEPS = 100        # a demonstration's states from this step on are "at its mode", before it
+#                           "in transit" (reaching the target, speeding up)
 N_SAMPLES = 2000          # samples drawn from each task flow to read its mode shares
 CURVE_POINTS = 10         # held-out NLL checkpoints per fit (plus the untrained flow)
 
@@ -445,6 +446,8 @@ def task_data(task: str, n_states: int, seed: int = 0) -> dict:
     train = pool[np.sort(rng.choice(len(pool), n_states, replace=False))]
     at_mode = {spec.modes[demos.modes[i]]: demos.trajectories[i].observations[SETTLE_STEPS:-1]
                for i in held_eps}
+    transit = np.concatenate([demos.trajectories[i].observations[:SETTLE_STEPS]
+                              for i in held_eps])
     sl, feature_name, tol = FEATURE_IN_STATE[task]
     centres = np.stack([np.median(np.concatenate([
         demos.trajectories[i].observations[SETTLE_STEPS:-1, sl] for i in train_eps
@@ -457,7 +460,7 @@ def task_data(task: str, n_states: int, seed: int = 0) -> dict:
     noise = np.random.default_rng(seed + 1).standard_normal(held.shape)
     perturbed = (held + TASK_TEST_NOISE * std * noise).astype(np.float32)
     return {"task": task, "train": train, "pool": pool, "held_out": held,
-            "perturbed": perturbed, "at_mode": at_mode, "modes": spec.modes, "feature": sl,
+            "perturbed": perturbed, "at_mode": at_mode, "transit": transit, "modes": spec.modes, "feature": sl,
             "feature_name": feature_name, "centres": centres, "tolerance": tol,
             "feature_corr": corr, "classify": env_task.classify_mode,
             "train_episodes": train_eps, "held_episodes": held_eps}
@@ -489,11 +492,12 @@ def task_run(d: dict, sigma_max: float, iterations: int, seed: int,
     finite = np.isfinite(sample).all(1)
     n_modes = len(d["modes"])
     per_mode = {m: float(flow.log_prob(x).mean()) for m, x in d["at_mode"].items()}
+    transit = float(flow.log_prob(d["transit"]).mean())
     return {"seed": seed, "sigma_max": float(sigma_max), "model": model_name(sigma_max),
             "config": dataclasses.asdict(cfg), "seconds": seconds,
             "heldout_nll": {k: v[-1] for k, v in curve.items() if k != "iteration"},
             "heldout_curve": curve, "train_curve": _train_curve(log),
-            "mode_logp": per_mode,
+            "mode_logp": per_mode, "transit_logp": transit,
             "sample_finite_share": float(finite.mean()),
             "sample_mode_shares": _shares(d["classify"](feat[finite]), n_modes),
             "sample_at_mode_shares": _at_mode_shares(d, feat[finite]),
@@ -517,7 +521,8 @@ def baselines(d: dict) -> dict:
         out[name] = {"heldout_nll": {k: -float(np.mean(logpdf(z(x)))) - jac
                                      for k, x in _held_out_sets(d).items()},
                      "mode_logp": {m: float(np.mean(logpdf(z(x)))) + jac
-                                   for m, x in d["at_mode"].items()}}
+                                   for m, x in d["at_mode"].items()},
+                     "transit_logp": float(np.mean(logpdf(z(d["transit"])))) + jac}
     out["kde"]["bandwidth_factor"] = float(kde.factor)
     return out
 
