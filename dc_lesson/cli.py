@@ -1,6 +1,7 @@
 """The ``dc-lesson`` command.
 
-    dc-lesson tour                 frames of the ten tasks, their specs and random returns
+    dc-lesson tour                 frames of the ten tasks, their specs and random returns,
+                                   then BC, GAIL and DC on reacher4 (the book's headline)
     dc-lesson tasks                the spec table
     dc-lesson expert train --task NAME   train (or resume) the expert of NAME with PPO
     dc-lesson demos --task NAME    roll out the expert of NAME into data/demos/
@@ -59,6 +60,11 @@ def cmd_tour(args) -> int:
               f"{stats[n]['mean']:>11.1f} ± {stats[n]['std']:<5.1f}")
     print(f"\nsaved {out / 'tour_tasks.png'} and {out / 'tour_random_returns.png'} "
           f"in {time.time() - t0:.0f} s")
+    if not args.no_headline:
+        from dc_lesson import headline
+        print(f"\nThe book's headline: BC, GAIL and DC on reacher4 (budget {b.name}; "
+              f"--no-headline skips it)")
+        headline.run("reacher4", budget=b, out=out)
     if args.save:
         from dc_lesson.results import write_result
         path = write_result(args.save, {"random_returns": stats}, command=_command_line(),
@@ -168,6 +174,8 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--out", default="outputs", help="folder for the figures")
     s.add_argument("--seed", type=int, default=0)
     s.add_argument("--save", default=None, help="also write the returns to this JSON file")
+    s.add_argument("--no-headline", action="store_true",
+                   help="skip the closing BC / GAIL / DC comparison on reacher4")
     s.set_defaults(func=cmd_tour)
     s = sub.add_parser("demos", help="roll out a task's expert into data/demos/")
     s.add_argument("--task", nargs="+", required=True)
