@@ -1,0 +1,611 @@
+# ---
+# jupyter:
+#   jupytext:
+#     formats: ipynb,py:percent
+#     text_representation:
+#       extension: .py
+#       format_name: percent
+#   kernelspec:
+#     display_name: Python 3
+#     language: python
+#     name: python3
+# ---
+
+# %% [markdown]
+# # 2. GAIL: adversarial imitation, instability and mode collapse
+#
+# Behaviour cloning learns only in the expert's states (chapter 1). The second paradigm the
+# paper sets DC against lets the learner act in the environment and compares *its* behaviour
+# with the expert's: **generative adversarial imitation learning** (GAIL, Ho and Ermon 2016).
+# A discriminator learns to tell the expert's state-action pairs from the learner's, and the
+# learner is rewarded for pairs the discriminator mistakes for the expert's. No one ever writes
+# down a reward; the discriminator *is* the reward, and it moves as the learner moves.
+#
+# The paper blames GAIL for two failures: adversarial training is **unstable** (it "tends to
+# fail/crash when learning rates are 1e-3 and higher", its Figure 4), and it is prone to
+# **mode collapse** (on Reacher4 "it only focuses on the green target out of the four", its
+# Figure 1b). This chapter:
+#
+# 1. derives GAIL's objective and reward, with the sign convention spelled out;
+# 2. says why the adversarial game is unstable, and why nothing in it asks for every mode;
+# 3. puts the pseudo-code beside the library's code (`dc_lesson.gail`), and trains GAIL live;
+# 4. reads the stored benchmark: BC (GAIL's warm start) and GAIL on `reacher4`, `reacher2`
+#    and `halfcheetah2`, three seeds each, with the mode-coverage plots (the paper's Figures 1,
+#    7 and 10), the Table I measures and the learning curves;
+# 5. reads the stored learning-rate sweep (the paper's Figure 4, for GAIL);
+# 6. reports what GAIL did to the expert's modes here, and what in the set-up decides it.
+
+# %%
+import copy
+import time
+
+import matplotlib.pyplot as plt
+import numpy as np
+import pandas as pd
+import torch
+from IPython.display import display
+
+from dc_lesson import bc, bench_gail, data, evaluation, gail, notebook, plots
+from dc_lesson.results import read_result
+
+BUDGET = notebook.start(
+    "the live GAIL run below is a few iterations long and its numbers mean nothing. The "
+    "stored benchmarks (data/results/gail_modes.json, gail_lr.json) are read, not "
+    "recomputed, so their tables and figures are the real ones.")
+CHAPTER_START = time.perf_counter()
+
+# %% [markdown]
+# ## The game
+#
+# Write $\rho_E(s,a)$ and $\rho_\pi(s,a)$ for the distributions of state-action pairs the
+# expert and the policy $\pi$ visit (their *occupancy measures*). GAIL solves
+#
+# $$\min_{\pi}\;\max_{D}\;\; \mathbb{E}_{\rho_E}\big[\log D(s,a)\big]
+#   + \mathbb{E}_{\rho_\pi}\big[\log\big(1 - D(s,a)\big)\big] - \lambda H(\pi),$$
+#
+# where $D(s,a)\in(0,1)$ is the discriminator's probability that the pair is the **expert's**
+# (the original paper has the opposite labels; we follow the GAN convention, and the
+# library's code and this text agree) and $H$ an optional entropy bonus (here
+# $\lambda = 0$).
+#
+# **The inner maximum.** For a fixed $\pi$ the objective is
+# $\int \rho_E\log D + \rho_\pi\log(1-D)$, maximised pointwise by
+# $D^*(s,a) = \rho_E/(\rho_E+\rho_\pi)$. Putting $D^*$ back in gives
+# $2\,\mathrm{JS}(\rho_E\,\|\,\rho_\pi) - \log 4$: GAIL minimises the Jensen-Shannon
+# divergence between the expert's and the learner's state-action distributions, through
+# samples alone. Unlike BC's Eq. 1, it compares distributions over the states the *learner*
+# reaches, so covariate shift is in the objective.
+#
+# **The discriminator step** is logistic regression with "expert = 1, learner = 0": with
+# $D = \sigma(f)$ for an MLP $f$ (the logit),
+#
+# $$L_D = -\,\mathbb{E}_{\rho_E}\log\sigma(f) - \mathbb{E}_{\rho_\pi}\log\big(1-\sigma(f)\big).$$
+#
+# **The policy step and the sign of the reward.** $\pi$ appears only in
+# $\mathbb{E}_{\rho_\pi}[\log(1-D)]$, which it wants to *minimise*. An expectation over the
+# policy's own pairs is what reinforcement learning maximises when it is written as a return,
+# so GAIL hands PPO the per-step reward
+#
+# $$r(s,a) = -\log\big(1 - D(s,a)\big) = \operatorname{softplus}\big(f(s,a)\big) \;\ge 0,$$
+#
+# large where the pair looks like the expert's ($D\to 1$) and near 0 where the discriminator
+# is sure it is the learner's. `gail.reward_from_logit` computes it as $\operatorname{softplus}(f)$,
+# which stays exact where $D$ rounds to 0 or 1. Two other forms have the same optimum and
+# are options (`reward_form`): $\log D$ (always $\le 0$) and $\log D - \log(1-D) = f$.
+# A positive reward pays for staying alive and a negative one for ending early; our tasks
+# have a fixed horizon and no early end, so that survival bias plays no role here.
+#
+# The cell checks the algebra: the reward by its definition and by the library, and the
+# optimal discriminator on two 1-D Gaussians.
+
+# %%
+f = torch.linspace(-8, 8, 17)
+D = torch.sigmoid(f)
+assert torch.allclose(gail.reward_from_logit(f, "gail"), -torch.log(1 - D), atol=1e-5)
+assert torch.allclose(gail.reward_from_logit(f, "log_d"), torch.log(D), atol=1e-5)
+assert torch.allclose(gail.reward_from_logit(f, "logit"), torch.log(D) - torch.log(1 - D),
+                      atol=1e-4)
+
+# The best discriminator between N(0, 1) (expert) and N(1, 1) (learner) is
+# rho_E / (rho_E + rho_pi) = sigmoid(0.5 - x); the inner maximum equals 2 JS - log 4.
+x = np.linspace(-12, 13, 200001)
+dx = x[1] - x[0]
+pe, pl = np.exp(-x ** 2 / 2) / np.sqrt(2 * np.pi), np.exp(-(x - 1) ** 2 / 2) / np.sqrt(2 * np.pi)
+d_star = pe / (pe + pl)
+assert np.allclose(d_star, 1 / (1 + np.exp(x - 0.5)))
+inner = np.sum(pe * np.log(d_star) + pl * np.log(1 - d_star)) * dx
+m = (pe + pl) / 2
+js = 0.5 * np.sum(pe * np.log(pe / m)) * dx + 0.5 * np.sum(pl * np.log(pl / m)) * dx
+print(f"inner maximum {inner:.5f} = 2 JS - log 4 = {2 * js - np.log(4):.5f}")
+assert abs(inner - (2 * js - np.log(4))) < 1e-6
+
+# %% [markdown]
+# ## Why adversarial training is unstable, and why it may lose modes
+#
+# The derivation assumed the discriminator is optimal for the *current* policy. In practice
+# both players take a few gradient steps in turn, and three things go wrong.
+#
+# * **The reward moves.** PPO assumes a fixed reward; here it changes every iteration, because
+#   the discriminator is retrained on the policy's newest pairs. Values learned a few
+#   iterations ago are for another reward. Large learning rates make both players jump,
+#   and the pair can oscillate rather than converge (GANs' familiar failure).
+# * **A discriminator that wins outright says nothing.** If $D$ separates the two sets
+#   perfectly, every learner pair gets $f \ll 0$ and a reward of about $e^{f}\approx 0$: a flat
+#   landscape with no direction (the "vanishing gradient" the paper cites). One that loses
+#   gives noise.
+# * **Nothing asks for every mode.** The policy is paid for pairs that *look* like the
+#   expert's. Reaching one target exactly as the expert does earns as much per step as
+#   reaching all four in the expert's proportions, until the discriminator notices that the
+#   learner is always at that one target, lowers the reward there, and the learner moves on,
+#   possibly to *another single* mode rather than to the mixture. The JS divergence at the
+#   optimum does penalise missing modes, but the alternating game rarely reaches it.
+#
+# There is a fourth reason that belongs to the *policy*, not to the game, and on our tasks it
+# matters most. The expert picks its mode by a coin flip at the start of each episode that
+# the learner never sees (chapter 0). A Gaussian policy $\pi(a\mid s)=\mathcal{N}(\mu(s),
+# \sigma^2)$ has one mean action per state, and the evaluation runs that mean. A deterministic
+# policy can then reach different targets only by the *initial state*: it can split the
+# start states into regions, one per target, but it cannot flip a coin. Whatever GAIL's reward
+# says, the mode shares such a policy can show are those of some partition of the start
+# states. Keep that in mind when reading the results below.
+#
+# ## The algorithm, beside the code
+#
+# ```
+# GAIL(expert pairs D_E, policy π (BC warm start), value V, discriminator f)
+#   fix the input statistics of f, π and V to the expert's states (and actions, for f)
+#   for iteration = 1..N:
+#       B ← n_envs × n_steps pairs of the stochastic π             ppo.collect_batch
+#       repeat disc_steps times:                                   gail.discriminator_step
+#           f ← Adam step on BCE(f(expert minibatch), 1) + BCE(f(learner minibatch), 0)
+#       r ← softplus(f(s, a)) for every pair of B                   gail.reward_from_logit
+#       A, targets ← GAE(r, V)                                      ppo.compute_gae
+#       π, V ← PPO's clipped-surrogate epochs on B                  ppo.ppo_update
+#             (only V during the first value_warmup iterations)
+# ```
+#
+# `gail.train` is this loop, built from the library's PPO pieces. Here is one discriminator
+# step written out by hand on a batch, checked against `gail.discriminator_loss`:
+
+# %%
+LIVE_TASK = "reacher2"
+demos_live = data.load_demos(LIVE_TASK, n_trajectories=BUDGET.il_demos)
+e_obs, e_act = gail.expert_pairs(demos_live)
+l_obs = e_obs[:256] + 0.05 * torch.randn(256, e_obs.shape[1],
+                                         generator=torch.Generator().manual_seed(0))
+l_act = torch.rand(256, e_act.shape[1], generator=torch.Generator().manual_seed(1)) * 2 - 1
+
+torch.manual_seed(0)
+disc = gail.Discriminator(e_obs.shape[1], e_act.shape[1])
+disc.fit_input_stats(e_obs, e_act)                     # the expert's statistics, fixed
+xe = (torch.cat([e_obs[:256], e_act[:256]], -1) - disc.in_mean) / disc.in_std
+xl = (torch.cat([l_obs, l_act.clamp(-1, 1)], -1) - disc.in_mean) / disc.in_std
+by_hand = -(torch.log(torch.sigmoid(disc.net(xe))).mean()
+            + torch.log(1 - torch.sigmoid(disc.net(xl))).mean())
+library = gail.discriminator_loss(disc, e_obs[:256], e_act[:256], l_obs, l_act)["loss"]
+print(f"discriminator loss by hand {by_hand.item():.6f}, gail.discriminator_loss "
+      f"{library.item():.6f} (2 log 2 = {2 * np.log(2):.6f}: an untrained D says 1/2)")
+assert torch.allclose(by_hand, library, atol=1e-5)
+
+# %% [markdown]
+# Choices the paper leaves open, each a field of `gail.GAILConfig` (printed below):
+#
+# * **Inputs of $D$**: the state and the action *as applied* (clipped to the bounds: a raw
+#   Gaussian sample beyond them would betray the learner by $|a|>1$ alone), standardised
+#   with the expert pairs' mean and std, fixed for the run.
+# * **The BC warm start.** Every GAIL run here starts from `bc.warm_start`: BC on the same
+#   18 demonstrations, with the log-std reset to PPO's initial $-0.5$ so PPO has noise to
+#   explore with. A common and fair practice; it also means the benchmark shows what GAIL
+#   does *to* BC's policy, and BC is the first row of every comparison.
+# * **A frozen observation normaliser.** PPO alone keeps updating its running normaliser. A
+#   warm-started policy's mean network was fitted to inputs standardised with the expert's
+#   statistics; letting them drift to the learner's own states would change every action
+#   without a single gradient step, and undo the warm start. So the normaliser (of the policy
+#   and the value network) stays at the expert's statistics.
+# * **A short critic warm-up** (`value_warmup=2`): the first two iterations train only the
+#   value network, so PPO's first policy steps do not follow advantages that are mostly a
+#   fresh critic's error.
+# * **PPO for GAIL**: batches of 8 × 512 steps, 5 epochs of 8 minibatches (CleanRL's 10 × 32
+#   per 2048 steps would make the update cost four times the simulation), learning rate
+#   $3\cdot10^{-4}$ annealed, no entropy bonus; discriminator 64-64 tanh, Adam
+#   $3\cdot10^{-4}$, 8 steps of 512 + 512 pairs per iteration, no gradient penalty (an
+#   option), reward $-\log(1-D)$.
+
+# %%
+gail.GAILConfig().to_dict()
+
+# %% [markdown]
+# ## A live run
+#
+# GAIL on `reacher2` from a BC warm start, a tenth of the benchmark's interactions at the
+# current budget (at `lesson`: 30,000 steps, about a minute). The log has, per iteration, the
+# discriminator's loss and accuracy on the expert's and the learner's pairs, the reward's
+# mean and spread, and the return of the training episodes by the task's own reward, which
+# GAIL never sees.
+
+# %%
+LIVE_STEPS = max(2048, BUDGET.il_steps // 10)
+t0 = time.perf_counter()
+warm, demos, _ = bc.warm_start(LIVE_TASK, BUDGET.il_demos, seed=0,
+                               max_epochs=BUDGET.bc_max_epochs)
+bc_seconds = time.perf_counter() - t0
+live_cfg = bench_gail.gail_config(LIVE_STEPS, seed=0)
+t0 = time.perf_counter()
+live_policy, live_disc, live_log = gail.train(LIVE_TASK, live_cfg, demos,
+                                              policy=copy.deepcopy(warm), progress=False)
+gail_seconds = time.perf_counter() - t0
+log = pd.DataFrame(live_log)
+print(f"BC warm start {bc_seconds:.0f} s; GAIL {len(log)} iterations, "
+      f"{int(log['steps'].iloc[-1])} steps in {gail_seconds:.0f} s "
+      f"({log['steps_per_second'].mean():.0f} steps/s)")
+fig, axes = plt.subplots(1, 3, figsize=(13, 3.2))
+axes[0].plot(log["steps"], log["disc_loss"], label="discriminator loss")
+axes[0].axhline(2 * np.log(2), color="0.6", linestyle=":", label="2 log 2 (D = 1/2)")
+axes[1].plot(log["steps"], log["acc_expert"], label="accuracy on expert pairs")
+axes[1].plot(log["steps"], log["acc_learner"], label="accuracy on learner pairs")
+axes[1].set_ylim(0, 1.02)
+axes[2].errorbar(log["steps"], log["reward_mean"], yerr=log["reward_std"], fmt="o-",
+                 markersize=3, label="GAIL reward, mean ± std")
+for ax in axes:
+    ax.set_xlabel("environment steps")
+    ax.legend(frameon=False, fontsize=8)
+fig.suptitle(f"live GAIL on {LIVE_TASK} (seed 0, {BUDGET.name} budget)", fontsize=10)
+fig.tight_layout()
+plt.show()
+
+# %%
+reference = data.load_demos(LIVE_TASK)
+t0 = time.perf_counter()
+live_eval = {name: evaluation.evaluate_policy(LIVE_TASK, pi, reference,
+                                              n_episodes=BUDGET.il_eval_episodes,
+                                              keep_features=True)
+             for name, pi in (("BC", warm), ("GAIL", live_policy))}
+print(f"evaluation {time.perf_counter() - t0:.0f} s")
+pd.DataFrame({name: {"scaled return": ev["scaled_return"], "EMD": ev["emd"],
+                     "KL": ev["kl"], "RKL": ev["rkl"],
+                     **{f"share {k}": v for k, v in ev["mode_shares"].items()}}
+              for name, ev in live_eval.items()}).T.round(3)
+
+# %% [markdown]
+# One short run on one seed shows the mechanics, not the outcome. For that we need every
+# task, several seeds and the full number of interactions.
+#
+# ## The benchmark: BC and GAIL on the multi-mode tasks
+#
+# `dc-lesson bench gail --out data/results/gail_modes.json` runs, for `reacher4`, `reacher2`
+# and `halfcheetah2` and seeds 0, 1, 2: the BC warm start on the first 18 demonstrations,
+# GAIL from it for 300,000 environment interactions (`budget.il_steps`; in whole iterations
+# of 4,096 steps that is 73 iterations, 299,008 steps) with the same 18 demonstrations as
+# the expert's pairs, and `evaluation.evaluate_policy` on both, the same 50 fresh episodes (mean
+# action) for each, measured against all 25 demonstrations: the protocol DC will follow in
+# chapter 4. Subsampled mode features are stored beside the record for the plots.
+
+# %%
+modes = read_result("gail_modes.json")
+features = bench_gail.load_features("gail_modes.json")
+print(f"command: {modes['command']}\nbudget: {modes['budget']}   revision: "
+      f"{modes['revision'][:12]}   time: {modes['time']}\n{len(modes['runs'])} runs "
+      f"({len(modes['seeds'])} seeds × {len(modes['tasks'])} tasks), {modes['steps']:,} GAIL "
+      f"steps each, {modes['eval_episodes']} evaluation episodes per policy; "
+      f"{modes['wall_seconds'] / 60:.0f} min in all")
+
+
+def pm(mean, std, digits):
+    return f"{mean:.{digits}f} ± {std:.{digits}f}"
+
+
+summary = pd.DataFrame(modes["summary"])
+table_1 = pd.DataFrame({
+    "task": summary["task"], "approach": summary["method"],
+    "EMD": [pm(a, b, 3) for a, b in zip(summary["emd_mean"], summary["emd_std"])],
+    "KL": [pm(a, b, 2) for a, b in zip(summary["kl_mean"], summary["kl_std"])],
+    "RKL": [pm(a, b, 2) for a, b in zip(summary["rkl_mean"], summary["rkl_std"])],
+    "scaled return": [pm(a, b, 3) for a, b in zip(summary["scaled_return_mean"],
+                                                  summary["scaled_return_std"])],
+}).set_index(["task", "approach"])
+table_1
+
+# %% [markdown]
+# The layout of the paper's Table I: mean ± sample standard deviation over three seeds, EMD
+# in the units of the mode feature (metres of fingertip position on the reachers, m/s of
+# forward speed on `halfcheetah2`), KL = KL(expert ‖ learner) and RKL = KL(learner ‖ expert)
+# by the 1-nearest-neighbour estimator of chapter 1 (whose caveat about point masses holds
+# here too: read the EMD first). The paper's values (its BC / GAIL rows: EMD 1.01 / 0.84 on
+# Reacher2, 0.81 / 0.41 on Reacher4, 1.81 / 1.75 on HalfCheetah2) come from other tasks'
+# units and another estimator, so only the *order* of the rows can be compared.
+#
+# Which mode each evaluation episode took, per seed (the share of the 50 episodes):
+
+# %%
+share_rows = []
+for r in modes["runs"]:
+    for method in bench_gail.METHODS:
+        share_rows.append({"task": r["task"], "seed": r["seed"], "approach": method,
+                           **{k: round(v, 2) for k, v in r[method]["mode_shares"].items()}})
+shares = pd.DataFrame(share_rows).set_index(["task", "approach", "seed"]).sort_index()
+expert_shares = {t: modes["task_info"][t]["demo_mode_shares"] for t in modes["tasks"]}
+print("the 25 demonstrations' shares:", expert_shares)
+shares
+
+# %% [markdown]
+# ### Mode coverage (the paper's Figures 1, 10 and 7)
+#
+# Where the fingertip goes on `reacher4` and `reacher2`: expert (the demonstrations), BC and
+# GAIL, each pooled over the three seeds' evaluation episodes; then the same for GAIL seed by
+# seed, because pooling seeds can make three collapsed policies look like one that covers.
+
+# %%
+for task, k in (("reacher4", 4), ("reacher2", 2)):
+    pooled = {"expert": features[bench_gail.feature_key(task, "expert")],
+              **{f"{m} (3 seeds)": bench_gail.pooled_features(features, task, m)
+                 for m in bench_gail.METHODS}}
+    plots.coverage_reacher(pooled, k)
+    plt.suptitle(f"{task}: mode coverage", y=1.02)
+    plt.show()
+    per_seed = {f"GAIL seed {s}": features[bench_gail.feature_key(task, "GAIL", s)]
+                for s in modes["seeds"]}
+    plots.coverage_reacher(per_seed, k)
+    plt.show()
+
+# %%
+task = "halfcheetah2"
+curves = {"expert": features[bench_gail.feature_key(task, "expert")],
+          **{f"{m} seed {s}": features[bench_gail.feature_key(task, m, s)]
+             for m in bench_gail.METHODS for s in modes["seeds"]}}
+plots.coverage_velocity(curves, title="halfcheetah2: forward velocity (expert: black)")
+plt.show()
+
+# %% [markdown]
+# What the stored runs show (every statement is checked against
+# `data/results/gail_modes.json` by `tests/test_claims_gail.py`):
+#
+# * **`reacher2`: GAIL collapses onto the red target, in every seed.** The expert's
+#   demonstrations go to red and blue about equally (0.48 / 0.52). BC's three policies send
+#   0.18, 0.36 and 0.94 of their episodes to red; GAIL, started from each of them, sends
+#   1.00, 0.84 and 1.00. Even the BC policy that preferred blue (seed 0) was turned all the
+#   way to red. This is what the paper's Figure 10 reports ("GAIL only visited the red
+#   target"); we have not found what makes red the winner in all three seeds.
+# * **`reacher4`: two of three seeds collapse onto one target.** GAIL seed 1 sends 0.86 of its
+#   episodes to red and seed 2 sends 0.94 to yellow (its BC start sent none there: 0.30 red,
+#   0.16 green, 0.54 blue). Seed 0 spreads over red, blue and yellow (0.26, 0.52, 0.20), but
+#   its scaled return fell from 0.49 to −0.04: its fingertip heads for the targets and does
+#   not settle on them. Pooled over the three seeds, GAIL's map looks as if it covered three
+#   targets; seed by seed it does not. Green, the expert's second most visited target
+#   (0.28 of the demonstrations), gets at most 0.06 of any GAIL policy's episodes.
+# * **Coverage got worse, not better.** GAIL's EMD to the expert is *larger* than its BC
+#   start's on both reachers (0.159 against 0.116 on `reacher4`, 0.162 against 0.092 on
+#   `reacher2`) and about the same on `halfcheetah2` (4.11 against 4.18); its KL and reverse
+#   KL are larger than BC's on all three tasks. In the paper's Table I GAIL has the *lower*
+#   EMD of the two (0.41 against 0.81 on Reacher4, 0.84 against 1.01 on Reacher2).
+# * **`halfcheetah2`: neither covers both modes.** BC runs backward in 0.92 of its episodes
+#   (pooled over seeds; the demonstrations are 0.40 forward, 0.60 backward) and GAIL in
+#   0.82: GAIL moved a little towards the expert's mix, but every one of its policies still
+#   runs backward in most episodes, and at no mode's speed: the expert runs at about −6 or
+#   +8.5 m/s, while GAIL's median speeds are −1.8, −0.8 and −0.1 m/s (seeds 0, 1, 2): its
+#   density piles up between the expert's two peaks (the plot). The paper reports that GAIL
+#   "fails to reveal any mode" here, and that is what ours does too.
+# * **Return.** GAIL ends below its own BC start in 5 of the 9 runs, and its mean scaled
+#   return is below BC's on every task (0.30 against 0.45 on `reacher4`, 0.23 against 0.50
+#   on `reacher2`, 0.31 against 0.57 on `halfcheetah2`). On the reachers its seeds disagree
+#   far more than BC's (standard deviations 0.36 and 0.44 against 0.19 and 0.24): the same
+#   algorithm with three seeds lands anywhere from −0.04 to 0.75.
+#
+# ### Learning curves
+#
+# The return of the stochastic training episodes by the task's reward (which GAIL never
+# sees), mean and range over the three seeds, against environment steps. The dashed line is
+# the BC warm start's evaluation (mean action), for scale; the stochastic policy's return at
+# step 0 is lower than that, because of the exploration noise PPO needs.
+
+# %%
+fig, axes = plt.subplots(1, len(modes["tasks"]), figsize=(14, 3.3))
+for ax, task in zip(axes, modes["tasks"]):
+    runs = [r for r in modes["runs"] if r["task"] == task]
+    steps = np.array(runs[0]["curve"]["steps"])
+    y = np.array([r["curve"]["episode_return"] for r in runs])
+    ax.plot(steps, y.mean(0), color="tab:orange", label="GAIL (training episodes)")
+    ax.fill_between(steps, y.min(0), y.max(0), color="tab:orange", alpha=0.2, linewidth=0)
+    info = modes["task_info"][task]
+    bc_ret = np.mean([r["BC"]["return"] for r in runs])
+    gail_ret = np.mean([r["GAIL"]["return"] for r in runs])
+    ax.axhline(bc_ret, color="tab:blue", linestyle="--", label="BC start (evaluation)")
+    ax.axhline(gail_ret, color="tab:orange", linestyle="--", label="GAIL end (evaluation)")
+    ax.axhline(info["expert_return"], color="black", linewidth=0.8, label="expert")
+    ax.set_title(task)
+    ax.set_xlabel("environment steps")
+axes[0].set_ylabel("return")
+axes[0].legend(frameon=False, fontsize=8)
+fig.tight_layout()
+plt.show()
+
+# %% [markdown]
+# The training episodes' return jumps by 16 to 64 return points on average from one batch of
+# episodes to the next (by up to 430 once), and the seeds' range is wide: the adversarial
+# reward keeps moving, and so does the policy. The evaluation's mean action (dashed lines) ends below the BC start
+# on average on every task.
+#
+# What the discriminator saw at the end (mean over the last tenth of the iterations, then over
+# seeds): its accuracy on expert and learner pairs and the mean reward.
+
+# %%
+pd.DataFrame([{"task": r["task"], "seed": r["seed"],
+               **{k: round(v, 3) for k, v in r["disc_final"].items()},
+               "GAIL steps/s": round(r["steps_per_second"]),
+               "run (s)": round(r["wall_seconds"])} for r in modes["runs"]]
+             ).set_index(["task", "seed"])
+
+# %% [markdown]
+# ## Learning-rate robustness (the paper's Figure 4, for GAIL)
+#
+# The paper trains GAIL on Hopper with learning rates from $10^{-4}$ to $3\cdot10^{-3}$ and
+# finds that it "tends to fail/crash when learning rates are 1e-3 and higher". Our sweep,
+# `dc-lesson bench gail-lr --out data/results/gail_lr.json`, runs GAIL on `halfcheetah` (our
+# Hopper port has no competent expert yet) from each seed's BC warm start, with one learning
+# rate for the policy, its critic and the discriminator, for 150,000 interactions (half the
+# benchmark's, to keep the sweep affordable), two seeds per rate, and stores the final scaled
+# return (mean action, 50 episodes).
+
+# %%
+lr = read_result("gail_lr.json")
+lr_sum = pd.DataFrame(lr["summary"])
+lr_runs = pd.DataFrame(lr["runs"])
+print(f"command: {lr['command']}\nbudget: {lr['budget']}   revision: {lr['revision'][:12]}   "
+      f"{lr['task']}, {lr['steps']:,} steps per run, seeds {lr['seeds']}; "
+      f"{lr['wall_seconds'] / 60:.0f} min in all")
+fig, ax = plt.subplots(figsize=(6.5, 3.5))
+ax.errorbar(lr_sum["lr"], lr_sum["scaled_return_mean"], yerr=lr_sum["scaled_return_std"],
+            marker="o", capsize=4, color="tab:orange", label="GAIL after the sweep's steps")
+ax.scatter(lr_runs["lr"] * 1.08, lr_runs["scaled_return"], s=14, color="tab:orange",
+           alpha=0.5, label="single seeds")
+ax.axhline(lr["bc"]["scaled_return_mean"], color="tab:blue", linestyle="--",
+           label="BC warm start (mean over seeds)")
+ax.axhline(1, color="black", linewidth=0.8, linestyle=":")
+ax.set_xscale("log")
+ax.set_xticks(lr["lrs"], [f"{v:g}" for v in lr["lrs"]])
+ax.set_xlabel("learning rate (policy, critic and discriminator)")
+ax.set_ylabel("scaled return")
+ax.set_title(f"GAIL on {lr['task']}: final scaled return against the learning rate",
+             fontsize=10)
+ax.legend(frameon=False, fontsize=8)
+fig.tight_layout()
+plt.show()
+lr_sum.round(3)
+
+# %% [markdown]
+# LR-PROSE
+#
+# ## What decides mode collapse here
+#
+# Three things, from the one we are surest of.
+#
+# **1. The coin the learner cannot see.** Every expert here picks its mode by a fair coin at
+# the start of the episode, independent of the initial state and absent from the
+# observation. Our learners are single Gaussians, and the evaluation runs their mean action,
+# a function of the state. A deterministic function of the start state cannot flip a coin:
+# the most it can do is split the start states into regions, one per mode, in the expert's
+# proportions. Every mode share in this chapter is such a split. BC finds one by accident:
+# near any start state the demonstrations head for different targets, the regression
+# averages them, and which target the average tips towards depends on which demonstrations
+# happen to lie near, so BC's shares change with the seed (0.18 to 0.94 of the episodes to
+# red on `reacher2`). Had the expert chosen, say, the target nearest its initial fingertip,
+# the mode would be written in the start state, a Gaussian could learn the split exactly,
+# and neither BC nor GAIL would have to lose a mode (exercise 3 asks why our coin rules that
+# out).
+#
+# **2. What GAIL's reward pays for.** At the end of every run the discriminator wins: it
+# recognises 0.93 to 0.99 of the expert's pairs and 0.69 to 0.88 of the learner's (the table
+# above). Its reward is paid per step for pairs that look like the expert's, and an episode
+# that rests on one target looks like the expert's episodes that rest there, whichever target
+# it is. The proportions *across* episodes are no single step's business: they change only
+# if the discriminator singles out the over-visited target and the policy then moves the
+# boundaries of its split, a large, coordinated change that a few noisy PPO steps on a moving
+# reward rarely make. What we see instead is the policy sliding its episodes towards one
+# target and staying there: five of the six GAIL policies on the reachers send at least 0.84
+# of their episodes to one target, against one of the six BC policies they started from.
+#
+# **3. Instability.** The same algorithm, three seeds, ends anywhere from −0.04 to 0.75 scaled
+# return on `reacher2`, and below its warm start in 5 of 9 runs; the learning-rate sweep above
+# shows how that depends on the step size.
+#
+# So on our ports a single-Gaussian learner judged by its mean action cannot show the expert's
+# mode mix except through a lucky split of the start states, and GAIL's adversarial reward
+# made the split *more* lopsided than BC's on the reachers. DC (chapter 4) uses the same
+# policy class and the same protocol, so this limit applies to it too; what it can change is
+# how the split moves, and chapter 4 measures that against these files.
+#
+# ## What the paper left open, and what we chose
+#
+# | question | the paper | our choice |
+# |---|---|---|
+# | GAIL's reward | not stated | $-\log(1-D)$ with $D$ = P(expert); $\log D$ and the logit are options |
+# | discriminator | not stated | MLP 64-64 tanh on (state, clipped action), standardised with the expert's statistics; Adam $3\cdot10^{-4}$, 8 steps of 512 + 512 pairs per iteration, no gradient penalty |
+# | policy optimiser | not stated | the library's PPO: 8 envs × 512 steps per iteration, 5 epochs × 8 minibatches, lr $3\cdot10^{-4}$ annealed, no entropy bonus, 2 critic-only iterations first |
+# | warm start | not stated | BC on the same 18 demonstrations (`bc.warm_start`), log-std reset to $-0.5$; normaliser frozen at the expert's statistics |
+# | interactions | "the same amount" for every method | 300,000 per run after the warm start (`budget.il_steps`, shared with DC); 3 seeds |
+# | evaluation | 50 trajectories | mean action, 50 fresh episodes (seed 1000), measured against all 25 demonstrations, as for BC and DC |
+# | learning-rate sweep | Hopper | `halfcheetah`, 150,000 steps, 2 seeds, one rate for all three optimisers |
+#
+# ## Summary
+#
+# * GAIL trains a discriminator $D(s,a)$ = P(expert) by logistic regression and pays the
+#   policy $r=-\log(1-D)=\operatorname{softplus}(f)$ per step; at the optimal discriminator
+#   the game minimises the Jensen-Shannon divergence between the expert's and the learner's
+#   state-action distributions.
+# * The reward moves as the policy moves, a winning discriminator's reward is flat, and no
+#   single step is paid for covering every mode: three reasons the game is unstable and can
+#   collapse.
+# * `dc_lesson.gail` builds GAIL from the library's PPO pieces, from a BC warm start, with the
+#   observation normaliser frozen at the expert's statistics; one seed gives the same run,
+#   and a resumed run equals an uninterrupted one (`tests/test_gail.py`).
+# * On `reacher2` GAIL sent (almost) every episode to the red target in all three seeds, on
+#   `reacher4` to one target in two of three; its EMD to the expert was larger than its BC
+#   start's on both, and on `halfcheetah2` it ran at speeds between the expert's two modes.
+#   Its returns ended below BC's on average on every task, with a wide spread over seeds.
+# * What decides collapse here is first the set-up: the expert's per-episode coin is not in
+#   the observation, and a Gaussian judged by its mean action can only split start states.
+#   GAIL's per-step reward then pushed that split towards one mode.
+# * At the `lesson` budget this chapter runs in about CHAPTER-MINUTES minutes on the shared
+#   2-core machine (mostly the live run); the stored benchmarks took
+#   22 minutes (`bench gail`) and LR-MINUTES minutes (`bench gail-lr`).
+#
+# ## Exercises
+#
+# 1. **The optimal discriminator by training.** Fit a logistic regression $D=\sigma(wx+b)$ to
+#    samples of $\mathcal{N}(0,1)$ (label 1) and $\mathcal{N}(1,1)$ (label 0). Show that the
+#    best $w, b$ are $-1$ and $0.5$ (the log-ratio of the densities) and check it.
+# 2. **Reward forms.** Show that $-\log(1-D) - (-\log D) = f$ (the logit) for $D=\sigma(f)$,
+#    and that $-\log(1-D)\approx e^{f}$ for $f\ll 0$. Where does each form give the policy
+#    the most signal?
+# 3. **A deterministic policy cannot flip a coin.** A policy whose action is a function of
+#    the state, from start states that carry no information about a coin, sends an episode
+#    to target 1 or 2 as a function of its start state. Using the stored `reacher2` features,
+#    find the share of GAIL's episodes that go to each target, per seed, and explain why the
+#    expert's 0.48/0.52 could only be matched by a policy that splits the start states
+#    (or one that acts stochastically).
+# 4. **Saturation.** With the live discriminator, compute the reward on the learner's pairs
+#    and on the expert's, and the share of learner pairs with $D<0.01$. What would the
+#    reward's spread be if the discriminator won outright?
+
+# %%
+# Exercise 1: logistic regression on two Gaussians finds the log-density ratio.
+g = torch.Generator().manual_seed(0)
+xe_, xl_ = torch.randn(20000, 1, generator=g), torch.randn(20000, 1, generator=g) + 1
+w, b = torch.zeros(1, requires_grad=True), torch.zeros(1, requires_grad=True)
+opt = torch.optim.Adam([w, b], lr=0.05)
+for _ in range(400):
+    fe_, fl_ = xe_ * w + b, xl_ * w + b
+    loss = (torch.nn.functional.softplus(-fe_).mean() + torch.nn.functional.softplus(fl_).mean())
+    opt.zero_grad()
+    loss.backward()
+    opt.step()
+print(f"w = {w.item():+.3f} (theory -1), b = {b.item():+.3f} (theory +0.5)")
+assert abs(w.item() + 1) < 0.1 and abs(b.item() - 0.5) < 0.1
+
+# %%
+# Exercise 2: the difference of two reward forms is the logit; -log(1 - D) ~ e^f for f << 0.
+f = torch.linspace(-10, 10, 41)
+diff = gail.reward_from_logit(f, "gail") - (-gail.reward_from_logit(f, "log_d"))
+assert torch.allclose(diff, f, atol=1e-4)
+assert torch.allclose(gail.reward_from_logit(f[:5], "gail"), torch.exp(f[:5]), rtol=1e-3)
+
+# %%
+# Exercise 3: per-seed target shares of GAIL's evaluation episodes on reacher2.
+r2 = pd.DataFrame([{"seed": r["seed"], **r["GAIL"]["mode_shares"]}
+                   for r in modes["runs"] if r["task"] == "reacher2"]).set_index("seed")
+print(r2)
+assert np.allclose(r2.sum(axis=1), 1.0)
+
+# %%
+# Exercise 4: saturation of the live discriminator.
+with torch.no_grad():
+    ev_traj_obs = torch.from_numpy(demos.observations[:2000])
+    f_exp = live_disc(ev_traj_obs, torch.from_numpy(demos.actions[:2000]))
+    batch_obs = torch.from_numpy(reference.observations[-2000:])
+    f_rand = live_disc(batch_obs, torch.rand(2000, e_act.shape[1]) * 2 - 1)
+print(f"reward on expert pairs {gail.reward_from_logit(f_exp).mean():.3f}, on expert states "
+      f"with random actions {gail.reward_from_logit(f_rand).mean():.3f}; share of the latter "
+      f"with D < 0.01: {(torch.sigmoid(f_rand) < 0.01).float().mean():.2f}")
+
+# %%
+print(f"chapter executed in {time.perf_counter() - CHAPTER_START:.0f} s at the {BUDGET.name} "
+      f"budget")
