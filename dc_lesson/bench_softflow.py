@@ -416,11 +416,10 @@ def toy_run(seed: int, sigma_maxes, points: int, iterations: int, grid: int = 0,
 def _split_by_mode(demos, modes: int):
     """Holds out the last demonstration of every mode; the rest are for training."""
     ep_modes = np.asarray(demos.modes)
-    held = sorted(int(np.flatnonzero(ep_modes == m)[-1]) for m in range(modes)
-                  if (ep_modes == m).any())
-    if len(held) < modes or len(held) == len(ep_modes):
+    if any((ep_modes == m).sum() < 2 for m in range(modes)):
         raise FitBenchError(f"{demos.task}: need at least two demonstrations of every mode to "
                             f"hold one out (modes per episode: {ep_modes.tolist()})")
+    held = sorted(int(np.flatnonzero(ep_modes == m)[-1]) for m in range(modes))
     train = [i for i in range(len(ep_modes)) if i not in held]
     return train, held
 
