@@ -198,10 +198,15 @@ def test_with_lr_sets_every_learning_rate():
 
 # GAIL from scratch (no BC warm start, so the gain is GAIL's own) on cartpole: PPO's cartpole
 # settings from tests/test_ppo.py (no observation normaliser, lr 3e-3, gamma 0.98), 4
-# demonstrations as the expert's pairs, 60k interactions.
+# demonstrations as the expert's pairs, 60k interactions in training episodes cut at 200
+# steps (measured: about 55 s, evaluation return 776 ± 101 against the random policy's ~356).
+# With the full 1000-step episodes the same run stayed at the random policy's level (321):
+# the discriminator won outright (accuracy 1.00 / 0.98), with or without a gradient penalty,
+# a log D reward or a weaker discriminator; short episodes give it many more starts to learn
+# balancing from, where the expert's and the learner's states still overlap.
 LEARN = gail.GAILConfig(
     ppo=ppo.PPOConfig(n_envs=8, n_steps=250, n_epochs=10, n_minibatches=8, lr=3e-3,
-                      gamma=0.98, norm_obs=False, total_steps=60_000),
+                      gamma=0.98, norm_obs=False, total_steps=60_000, episode_steps=200),
     disc_lr=1e-3, value_warmup=0, bc_warm_start=False, seed=0)
 MIN_GAIN = 250.0   # return over the random policy's (~350), on the 0..1000 scale
 
