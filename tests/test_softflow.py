@@ -36,11 +36,9 @@ def gaussian_mixture(n: int, seed: int) -> np.ndarray:
 
 
 def circle(n: int, noise: float, seed: int) -> np.ndarray:
-    """Points on the unit circle, plus Gaussian noise of std ``noise``."""
-    rng = np.random.default_rng(seed)
-    theta = rng.uniform(0, 2 * np.pi, n)
-    x = np.stack([np.cos(theta), np.sin(theta)], 1)
-    return (x + noise * rng.normal(size=x.shape)).astype(np.float32)
+    """Points on the unit circle, plus Gaussian noise of std ``noise`` (the chapter's toy)."""
+    from dc_lesson.bench_softflow import circle as toy_circle
+    return toy_circle(n, seed=seed, noise=noise)
 
 
 @pytest.fixture(scope="module")
