@@ -459,7 +459,8 @@ def task_data(task: str, n_states: int, seed: int = 0) -> dict:
     noise = np.random.default_rng(seed + 1).standard_normal(held.shape)
     perturbed = (held + TASK_TEST_NOISE * std * noise).astype(np.float32)
     return {"task": task, "train": train, "pool": pool, "held_out": held,
-            "perturbed": perturbed, "at_mode": at_mode, "transit": transit, "modes": spec.modes, "feature": sl,
+            "perturbed": perturbed, "at_mode": at_mode, "transit": transit, "modes": spec.modes,
+            "feature": sl,
             "feature_name": feature_name, "centres": centres, "tolerance": tol,
             "feature_corr": corr, "classify": env_task.classify_mode,
             "train_episodes": train_eps, "held_episodes": held_eps}
