@@ -51,6 +51,7 @@ METHODS = ("BC", "GAIL")
 MEASURES = _evaluation.MEASURES
 FEATURES_PER_RUN = 2000
 EVAL_SEED = _evaluation.EVAL_SEED
+FINGER_RADIUS = 0.01   # the reacher's fingertip sphere (dm_control's reacher.xml; checked in a test)
 
 
 def gail_config(total_steps: int, seed: int = 0, lr: float | None = None,
@@ -199,6 +200,23 @@ def pooled_features(features: dict, task: str, method: str) -> np.ndarray:
     if not keys:
         raise KeyError(f"no {method} features of {task} in the file")
     return np.concatenate([features[k] for k in keys])
+
+
+def on_target(features: np.ndarray, n_targets: int) -> dict:
+    """Where a reacher policy is paid: the share of steps with the fingertip inside a target
+    (within target + finger radius, as the task's reward counts it), and how those steps split
+    over the targets (``None`` when no step is on one).  The evaluation's mode shares name the
+    *nearest* target of each episode's second half, however far away; this counts arrivals."""
+    from dc_lesson.tasks import reacher
+    targets = reacher.target_positions(n_targets)
+    radius = reacher.TARGET_SIZE + FINGER_RADIUS
+    d = np.linalg.norm(np.asarray(features)[:, None, :2] - targets[None], axis=-1)
+    on = d.min(1) <= radius
+    split = None
+    if on.any():
+        counts = np.bincount(d.argmin(1)[on], minlength=n_targets) / on.sum()
+        split = dict(zip(reacher.target_colours(n_targets), counts.tolist()))
+    return {"share": float(on.mean()), "split": split}
 
 
 def _task_info(ref: _data.Demonstrations) -> dict:
@@ -389,5 +407,5 @@ def main(what: str = "gail", tasks=None, seeds=None, steps=None, out=None,
 
 
 __all__ = ["FEATURES_PER_RUN", "LR_TASK", "METHODS", "TASKS", "feature_key", "features_path",
-           "format_table", "gail_config", "learning_curve", "load_features", "main",
+           "format_table", "gail_config", "learning_curve", "load_features", "main", "on_target",
            "pooled_features", "run", "run_lr", "run_one", "save_features", "summarise"]

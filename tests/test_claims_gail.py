@@ -63,6 +63,40 @@ def test_reacher4_two_of_three_seeds_collapse_onto_one_target(modes):
     assert max(_shares(modes, "reacher4", "GAIL", "green")) == 0.06       # "at most 0.06"
 
 
+def _arrivals(task, method, seed=None):
+    f = bench_gail.load_features("gail_modes.json")
+    k = {"reacher4": 4, "reacher2": 2}[task]
+    return bench_gail.on_target(f[bench_gail.feature_key(task, method, seed)], k)
+
+
+def test_reacher2_arrivals_bc_leans_red_and_gail_arrives_at_red_or_nowhere():
+    e = _arrivals("reacher2", "expert")
+    assert round(e["share"], 2) == 0.98
+    assert [round(e["split"][c], 2) for c in ("red", "blue")] == [0.48, 0.52]
+    bc = [_arrivals("reacher2", "BC", s) for s in (0, 1, 2)]
+    assert [round(a["share"], 2) for a in bc] == [0.30, 0.44, 0.77]
+    assert [round(a["split"]["red"], 2) for a in bc] == [0.59, 0.72, 0.96]
+    g = [_arrivals("reacher2", "GAIL", s) for s in (0, 1, 2)]
+    assert abs(g[1]["share"] - 0.74) < 0.005 and g[1]["split"]["red"] == 1.0
+    assert round(g[0]["share"], 2) == 0.02 and g[2]["share"] < 0.01
+
+
+def test_reacher4_arrivals_gail_arrives_at_one_target_or_hardly_anywhere():
+    bc = [_arrivals("reacher4", "BC", s) for s in (0, 1, 2)]
+    assert [round(a["split"]["red"], 2) for a in bc] == [0.68, 0.97, 0.84]
+    g = [_arrivals("reacher4", "GAIL", s) for s in (0, 1, 2)]
+    assert round(g[1]["share"], 2) == 0.70 and round(g[1]["split"]["red"], 2) == 0.99
+    assert round(g[2]["share"], 2) == 0.30 and round(g[2]["split"]["yellow"], 2) == 0.93
+    assert g[0]["share"] < 0.04
+
+
+def test_three_gail_reacher_policies_arrive_at_one_target_three_almost_nowhere():
+    g = [_arrivals(t, "GAIL", s) for t in ("reacher4", "reacher2") for s in (0, 1, 2)]
+    arriving = [a for a in g if a["share"] >= 0.25]
+    assert len(arriving) == 3 and all(max(a["split"].values()) >= 0.9 for a in arriving)
+    assert all(a["share"] < 0.04 for a in g if a["share"] < 0.25)
+
+
 def test_five_of_six_gail_reacher_policies_favour_one_target_against_one_of_six_bc(modes):
     def lopsided(method):
         return sum(max(r[method]["mode_shares"].values()) >= 0.84
@@ -118,6 +152,12 @@ def test_learning_curves_jump_between_batches(modes):
     mean_jumps = [j.mean() for j in jumps]
     assert round(min(mean_jumps)) == 16 and round(max(mean_jumps)) == 64
     assert round(max(j.max() for j in jumps)) == 430
+    # halfcheetah2's training return climbs from 113 to 211 (first and last three points).
+    y = np.array([r["curve"]["episode_return"] for r in _runs(modes, "halfcheetah2")]).mean(0)
+    assert (round(y[:3].mean()), round(y[-3:].mean())) == (113, 211)
+    for task in ("reacher4", "reacher2"):                 # "ends about where it began"
+        y = np.array([r["curve"]["episode_return"] for r in _runs(modes, task)]).mean(0)
+        assert abs(y[-3:].mean() - y[:3].mean()) < 20
     # The evaluation's mean action ends below the BC start on average on every task.
     for task in modes["tasks"]:
         runs = _runs(modes, task)

@@ -270,3 +270,18 @@ def test_summary_is_mean_and_sample_std_over_seeds():
     assert g["emd_std"] == pytest.approx(np.std([0.2, 0.4, 0.9], ddof=1))
     assert g["mode_shares_mean"]["b"] == pytest.approx(0.5)
     assert "GAIL" in bench_gail.format_table(s)
+
+
+def test_on_target_counts_what_the_reacher_reward_counts():
+    from dc_lesson import tasks
+    from dc_lesson.tasks import reacher
+    env = tasks.load("reacher2", seed=0)
+    model = env.physics.model
+    assert model.geom_size[model.geom("finger").id][0] == bench_gail.FINGER_RADIUS
+    red, blue = reacher.target_positions(2)
+    radius = reacher.TARGET_SIZE + bench_gail.FINGER_RADIUS
+    f = np.array([red, red + [radius * 0.9, 0], blue, [0.0, 0.0], red + [radius * 1.1, 0]])
+    out = bench_gail.on_target(f, 2)
+    assert out["share"] == pytest.approx(0.6)
+    assert out["split"] == {"red": pytest.approx(2 / 3), "blue": pytest.approx(1 / 3)}
+    assert bench_gail.on_target(np.zeros((3, 2)), 2) == {"share": 0.0, "split": None}
