@@ -228,10 +228,12 @@ def _task_info(ref: _data.Demonstrations) -> dict:
 
 
 def run(tasks=TASKS, seeds=(0, 1, 2), *, n_demos: int = 18, steps: int = 300_000,
-        eval_episodes: int = 50, bc_max_epochs: int = 200, threads: int | None = 1,
+        eval_episodes: int = 50, bc_max_epochs: int = 200, lr: float | None = None,
+        threads: int | None = 1,
         progress: bool = True, out=None, command: str = "") -> dict:
     """``bench gail``: BC and GAIL on each task and seed (module docstring); returns the record
-    and writes it (and the features' ``.npz``) when ``out`` is given."""
+    and writes it (and the features' ``.npz``) when ``out`` is given.  ``lr`` sets one learning
+    rate for the policy, its critic and the discriminator (:meth:`GAILConfig.with_lr`)."""
     import torch
 
     from dc_lesson.results import write_result
@@ -248,7 +250,7 @@ def run(tasks=TASKS, seeds=(0, 1, 2), *, n_demos: int = 18, steps: int = 300_000
                                   f"needs 2 to {len(ref)}, got {n_demos}")
         _check_eval_seeds(ref, EVAL_SEED, eval_episodes)
         references[task] = ref
-    config = gail_config(steps)
+    config = gail_config(steps, lr=lr)
     old_threads = torch.get_num_threads()
     if threads is not None:
         torch.set_num_threads(int(threads))
@@ -262,7 +264,7 @@ def run(tasks=TASKS, seeds=(0, 1, 2), *, n_demos: int = 18, steps: int = 300_000
                 row, feats = run_one(task, seed, n_demos=n_demos, steps=steps,
                                      eval_episodes=eval_episodes, reference=references[task],
                                      bc_max_epochs=bc_max_epochs,
-                                     config=gail_config(steps, seed), progress=False)
+                                     config=gail_config(steps, seed, lr=lr), progress=False)
                 runs.append(row)
                 for method, f in feats.items():
                     features[feature_key(task, method, seed)] = _subsample(
@@ -388,7 +390,7 @@ def run_lr(task: str = LR_TASK, lrs=(1e-4, 3e-4, 1e-3, 3e-3), seeds=(0, 1), *,
     return record
 
 
-def main(what: str = "gail", tasks=None, seeds=None, steps=None, out=None,
+def main(what: str = "gail", tasks=None, seeds=None, steps=None, lr=None, out=None,
          command: str = "") -> dict:
     """:func:`run` or :func:`run_lr` with the current budget's sizes where not given."""
     from dc_lesson import budget
@@ -397,8 +399,11 @@ def main(what: str = "gail", tasks=None, seeds=None, steps=None, out=None,
     if what == "gail":
         return run(tasks or TASKS, seeds or b.il_seeds, n_demos=b.il_demos,
                    steps=steps or b.il_steps, eval_episodes=b.il_eval_episodes,
-                   bc_max_epochs=b.bc_max_epochs, out=out, command=command)
+                   bc_max_epochs=b.bc_max_epochs, lr=lr, out=out, command=command)
     if what == "gail-lr":
+        if lr is not None:
+            raise BenchInputError("bench gail-lr sweeps the budget's learning rates; --lr is "
+                                  "for bench gail")
         task = (tasks or [LR_TASK])[0]
         return run_lr(task, b.lr_sweep_lrs, seeds or b.lr_sweep_seeds, n_demos=b.il_demos,
                       steps=steps or b.lr_sweep_steps, eval_episodes=b.il_eval_episodes,

@@ -134,7 +134,7 @@ def cmd_bench(args) -> int:
         from dc_lesson import bench_bc, bench_gail, data
         try:
             bench_gail.main(args.what, tasks=args.tasks, seeds=args.seeds, steps=args.steps,
-                            out=args.out, command=_command_line())
+                            lr=args.lr, out=args.out, command=_command_line())
         except (data.DemoError, bench_bc.BenchInputError) as e:
             print(f"dc-lesson: {e}", file=sys.stderr)
             return 2
@@ -201,6 +201,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="bc: evaluation episodes per policy (default: the budget's)")
     s.add_argument("--epochs", type=int, default=None,
                    help="bc: maximum training epochs (default: the budget's)")
+    s.add_argument("--lr", type=float, default=None,
+                   help="gail: one learning rate for the policy, critic and discriminator "
+                        "(default: GAILConfig's)")
     s.set_defaults(func=cmd_bench)
     return p
 
