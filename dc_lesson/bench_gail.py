@@ -30,10 +30,10 @@ of each run (and BC's, the common start) is stored: the paper's Figure 4 for GAI
 
 from __future__ import annotations
 
+import contextlib
 import copy
 import dataclasses
 import io
-import json
 import pathlib
 import time
 
@@ -227,6 +227,20 @@ def _task_info(ref: _data.Demonstrations) -> dict:
             "expert_mode_shares": m["expert_mode_shares"], "expert": m["expert"]["name"]}
 
 
+@contextlib.contextmanager
+def _torch_threads(threads: int | None):
+    """Runs the block with ``threads`` torch threads (None: unchanged), restored afterwards;
+    one thread by default, which makes runs repeat exactly."""
+    import torch
+    old = torch.get_num_threads()
+    if threads is not None:
+        torch.set_num_threads(int(threads))
+    try:
+        yield threads if threads is not None else old
+    finally:
+        torch.set_num_threads(old)
+
+
 def run(tasks=TASKS, seeds=(0, 1, 2), *, n_demos: int = 18, steps: int = 300_000,
         eval_episodes: int = 50, bc_max_epochs: int = 200, lr: float | None = None,
         threads: int | None = 1,
@@ -234,8 +248,6 @@ def run(tasks=TASKS, seeds=(0, 1, 2), *, n_demos: int = 18, steps: int = 300_000
     """``bench gail``: BC and GAIL on each task and seed (module docstring); returns the record
     and writes it (and the features' ``.npz``) when ``out`` is given.  ``lr`` sets one learning
     rate for the policy, its critic and the discriminator (:meth:`GAILConfig.with_lr`)."""
-    import torch
-
     from dc_lesson.results import write_result
     tasks, seeds = list(tasks), [int(s) for s in seeds]
     if not tasks or not seeds:
@@ -251,12 +263,9 @@ def run(tasks=TASKS, seeds=(0, 1, 2), *, n_demos: int = 18, steps: int = 300_000
         _check_eval_seeds(ref, EVAL_SEED, eval_episodes)
         references[task] = ref
     config = gail_config(steps, lr=lr)
-    old_threads = torch.get_num_threads()
-    if threads is not None:
-        torch.set_num_threads(int(threads))
     runs, features = [], {}
     start = time.perf_counter()
-    try:
+    with _torch_threads(threads) as n_threads:
         for task in tasks:
             features[feature_key(task, "expert")] = _subsample(
                 references[task].mode_features, FEATURES_PER_RUN, 0)
@@ -275,9 +284,6 @@ def run(tasks=TASKS, seeds=(0, 1, 2), *, n_demos: int = 18, steps: int = 300_000
                           f"{row['GAIL']['scaled_return']:.3f} (EMD {row['GAIL']['emd']:.3f})"
                           f"; modes {row['GAIL']['mode_shares']}; "
                           f"{row['wall_seconds']:.0f} s", flush=True)
-    finally:
-        if threads is not None:
-            torch.set_num_threads(old_threads)
     wall = time.perf_counter() - start
     record = {
         "benchmark": "gail_modes", "tasks": tasks, "n_demos": int(n_demos),
@@ -295,7 +301,7 @@ def run(tasks=TASKS, seeds=(0, 1, 2), *, n_demos: int = 18, steps: int = 300_000
         "gail_config": {k: v for k, v in config.to_dict().items() if k != "seed"},
         "features_file": features_path(out).name if out is not None else None,
         "features_per_run": FEATURES_PER_RUN,
-        "torch_threads": threads if threads is not None else old_threads,
+        "torch_threads": n_threads,
         "task_info": {t: _task_info(references[t]) for t in tasks},
         "wall_seconds": wall, "summary": summarise(runs), "runs": runs}
     if progress:
@@ -315,8 +321,6 @@ def run_lr(task: str = LR_TASK, lrs=(1e-4, 3e-4, 1e-3, 3e-3), seeds=(0, 1), *,
            out=None, command: str = "") -> dict:
     """``bench gail-lr``: GAIL's final scaled return for each learning rate and seed, from the
     seed's BC warm start (module docstring)."""
-    import torch
-
     from dc_lesson.results import write_result
     lrs, seeds = [float(x) for x in lrs], [int(s) for s in seeds]
     if not lrs or not seeds or any(not x > 0 for x in lrs):
@@ -325,12 +329,9 @@ def run_lr(task: str = LR_TASK, lrs=(1e-4, 3e-4, 1e-3, 3e-3), seeds=(0, 1), *,
     if not 2 <= n_demos <= len(ref):
         raise BenchInputError(f"{task} has {len(ref)} demonstrations; got {n_demos}")
     _check_eval_seeds(ref, EVAL_SEED, eval_episodes)
-    old_threads = torch.get_num_threads()
-    if threads is not None:
-        torch.set_num_threads(int(threads))
     runs, bc_runs = [], []
     start = time.perf_counter()
-    try:
+    with _torch_threads(threads):
         for seed in seeds:
             t0 = time.perf_counter()
             warm, demos, _ = _bc.warm_start(task, n_demos, seed, max_epochs=bc_max_epochs)
@@ -359,9 +360,6 @@ def run_lr(task: str = LR_TASK, lrs=(1e-4, 3e-4, 1e-3, 3e-3), seeds=(0, 1), *,
                           f"{ev['scaled_return']:.3f} (BC start "
                           f"{bc_runs[-1]['scaled_return']:.3f}); "
                           f"{runs[-1]['seconds']:.0f} s", flush=True)
-    finally:
-        if threads is not None:
-            torch.set_num_threads(old_threads)
     summary = []
     for lr in lrs:
         v = np.array([r["scaled_return"] for r in runs if r["lr"] == lr])
