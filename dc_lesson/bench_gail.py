@@ -108,8 +108,8 @@ def run_one(task: str, seed: int, *, n_demos: int, steps: int, eval_episodes: in
                                         seed=eval_seed, keep_features=True)
     cfg = config or gail_config(steps, seed)
     t2 = time.perf_counter()
-    policy, _, log = _gail.train(task, cfg, demos, policy=copy.deepcopy(policy),
-                                 progress=progress)
+    start = copy.deepcopy(policy) if cfg.bc_warm_start else None   # None: a fresh policy
+    policy, _, log = _gail.train(task, cfg, demos, policy=start, progress=progress)
     t3 = time.perf_counter()
     ev_gail = _evaluation.evaluate_policy(task, policy, reference, n_episodes=eval_episodes,
                                           seed=eval_seed, keep_features=True)

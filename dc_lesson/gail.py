@@ -130,8 +130,8 @@ class GAILConfig:
     reward_form: str = "gail"       # "gail": -log(1-D); "log_d": log D; "logit": log D/(1-D)
     reward_scale: float = 1.0       # multiplies the reward (PPO here does not normalise it)
     value_warmup: int = 2           # first iterations that train only the value network
-    bc_warm_start: bool = True      # the benchmark starts from bc.warm_start (train() takes
-    #                                 the policy it is given; this records which it was)
+    bc_warm_start: bool = True      # start from bc.warm_start (bench_gail.run_one honours it;
+    #                                 train() itself starts from the policy it is given)
     entropy: float = 0.0            # entropy bonus lambda (overrides ppo.ent_coef)
     seed: int = 0                   # the one seed of the run
 
