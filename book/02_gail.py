@@ -423,9 +423,10 @@ plt.show()
 # ### Learning curves
 #
 # The return of the stochastic training episodes by the task's reward (which GAIL never
-# sees), mean and range over the three seeds, against environment steps. The dashed line is
-# the BC warm start's evaluation (mean action), for scale; the stochastic policy's return at
-# step 0 is lower than that, because of the exploration noise PPO needs.
+# sees), mean and range over the three seeds, against environment steps. The dashed lines are
+# the evaluations (mean action) of the BC warm start and of GAIL's final policy, for scale;
+# the stochastic policy's return at step 0 is lower than BC's evaluation because of the
+# exploration noise PPO needs.
 
 # %%
 fig, axes = plt.subplots(1, len(modes["tasks"]), figsize=(14, 3.3))
@@ -560,8 +561,8 @@ lr_sum.assign(lr=[f"{v:g}" for v in lr_sum["lr"]]).set_index("lr").round(3)
 # resting at one (small velocities, small actions).
 #
 # **3. Instability.** The same algorithm, three seeds, ends anywhere from −0.04 to 0.75 scaled
-# return on `reacher2`, and below its warm start in 5 of 9 runs; the learning-rate sweep above
-# shows how that depends on the step size.
+# return on the reachers, and below its warm start in 5 of 9 runs; the learning-rate sweep
+# above shows how that depends on the step size.
 #
 # So on our ports a single-Gaussian learner judged by its mean action cannot show the expert's
 # mode mix except through a lucky split of the start states, and GAIL's adversarial reward

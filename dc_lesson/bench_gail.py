@@ -51,7 +51,7 @@ METHODS = ("BC", "GAIL")
 MEASURES = _evaluation.MEASURES
 FEATURES_PER_RUN = 2000
 EVAL_SEED = _evaluation.EVAL_SEED
-FINGER_RADIUS = 0.01   # the reacher's fingertip sphere (dm_control's reacher.xml; checked in a test)
+FINGER_RADIUS = 0.01   # the reacher's fingertip sphere (dm_control's reacher.xml; a test checks)
 
 
 def gail_config(total_steps: int, seed: int = 0, lr: float | None = None,
