@@ -217,3 +217,71 @@ def test_gail_does_not_keep_the_near_expert_start_at_any_learning_rate(lr):
 def test_the_discriminator_wins_in_every_sweep_run(lr):
     acc = [r["acc_learner_final"] for r in lr["runs"]]
     assert round(min(acc), 2) == 0.95 and round(max(acc), 2) == 1.0
+
+
+# -- the benchmark rerun at lr 1e-4 (data/results/gail_modes_lr1e-4.json) -----------------------
+
+@pytest.fixture(scope="module")
+def slow():
+    return read_result("gail_modes_lr1e-4.json")
+
+
+def _slow_arrivals(task, seed):
+    f = bench_gail.load_features("gail_modes_lr1e-4.json")
+    k = {"reacher4": 4, "reacher2": 2}[task]
+    return bench_gail.on_target(f[bench_gail.feature_key(task, "GAIL", seed)], k)
+
+
+def test_the_rerun_is_the_benchmark_with_one_learning_rate_of_1e_4(modes, slow):
+    assert slow["budget"] == "lesson" and slow["seeds"] == [0, 1, 2]
+    assert slow["tasks"] == modes["tasks"] and slow["steps"] == modes["steps"]
+    cfg = slow["gail_config"]
+    assert cfg["ppo"]["lr"] == cfg["disc_lr"] == 1e-4
+    same = {k: v for k, v in cfg.items() if k not in ("ppo", "disc_lr")}
+    assert same == {k: v for k, v in modes["gail_config"].items()
+                    if k not in ("ppo", "disc_lr")}
+    assert round(slow["wall_seconds"] / 60) == 19                      # "19 minutes"
+    # The BC starts are the same policies (same seeds, same demonstrations).
+    for a, b in zip(modes["runs"], slow["runs"]):
+        assert a["BC"]["scaled_return"] == b["BC"]["scaled_return"]
+
+
+def test_at_1e_4_reacher4_policies_stop_arriving(slow):
+    shares = [_slow_arrivals("reacher4", s)["share"] for s in (0, 1, 2)]
+    assert [round(x, 2) for x in shares] == [0.02, 0.02, 0.05]
+    s = {(r["task"], r["method"]): r for r in slow["summary"]}
+    assert (round(s["reacher4", "GAIL"]["scaled_return_mean"], 2),
+            round(s["reacher4", "GAIL"]["scaled_return_std"], 2)) == (-0.04, 0.02)
+    runs = _runs(slow, "reacher4")
+    assert runs[1]["GAIL"]["mode_shares"]["blue"] == 0.8
+    assert runs[2]["GAIL"]["mode_shares"]["green"] == 0.82
+
+
+def test_at_1e_4_one_reacher2_seed_arrives_only_at_red(slow):
+    a = [_slow_arrivals("reacher2", s) for s in (0, 1, 2)]
+    assert round(a[2]["share"], 2) == 0.79 and a[2]["split"]["red"] > 0.99
+    assert round(_runs(slow, "reacher2")[2]["GAIL"]["scaled_return"], 2) == 0.81
+    assert a[0]["share"] < 0.08 and a[1]["share"] < 0.08
+    runs = _runs(slow, "reacher2")
+    assert runs[0]["GAIL"]["mode_shares"]["red"] == 1.0
+    assert runs[1]["GAIL"]["mode_shares"]["blue"] == 1.0
+
+
+def test_at_1e_4_halfcheetah2_policies_stand_still(slow):
+    f = bench_gail.load_features("gail_modes_lr1e-4.json")
+    for seed in (0, 1, 2):
+        v = f[bench_gail.feature_key("halfcheetah2", "GAIL", seed)][:, 0]
+        assert abs(float(np.median(v))) < 0.05
+    s = {(r["task"], r["method"]): r for r in slow["summary"]}
+    assert (round(s["halfcheetah2", "GAIL"]["scaled_return_mean"], 2),
+            round(s["halfcheetah2", "GAIL"]["scaled_return_std"], 2)) == (0.08, 0.01)
+    for r in _runs(slow, "halfcheetah2"):
+        assert 0.4 <= r["GAIL"]["mode_shares"]["forward"] <= 0.6      # "near one half"
+
+
+def test_at_1e_4_the_emd_stays_above_bcs(slow):
+    s = {(r["task"], r["method"]): r for r in slow["summary"]}
+    got = [round(s[t, "GAIL"]["emd_mean"], 3) for t in ("reacher4", "reacher2")]
+    assert got == [0.125, 0.160] and round(s["halfcheetah2", "GAIL"]["emd_mean"], 2) == 5.56
+    for t in ("reacher4", "reacher2", "halfcheetah2"):
+        assert s[t, "GAIL"]["emd_mean"] > s[t, "BC"]["emd_mean"]
