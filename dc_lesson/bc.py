@@ -140,6 +140,14 @@ def episodes(data) -> list[Episode]:
     return out
 
 
+def pairs(data) -> tuple[torch.Tensor, torch.Tensor]:
+    """All (state, action) pairs of ``data`` (anything :func:`episodes` accepts) as float32
+    tensors: the expert pairs GAIL's discriminator and DC's BC step draw from."""
+    eps = episodes(data)
+    return (torch.from_numpy(np.concatenate([o for o, _ in eps])),
+            torch.from_numpy(np.concatenate([a for _, a in eps])))
+
+
 def split_episodes(n_episodes: int, val_fraction: float, seed) -> tuple[np.ndarray, np.ndarray]:
     """Indices of the training and validation episodes (each sorted), by whole episodes.
 
@@ -329,4 +337,4 @@ def warm_start(task: str, n_demos: int, seed: int, *, max_epochs: int = 200,
 
 
 __all__ = ["BCConfig", "WARM_START_LOG_STD", "bc_loss", "bc_step", "episodes", "evaluate",
-           "split_episodes", "train_bc", "warm_start"]
+           "pairs", "split_episodes", "train_bc", "warm_start"]

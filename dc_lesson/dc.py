@@ -443,11 +443,7 @@ def _load_state(learner: Learner, state: dict) -> None:
 
 # -- Algorithm 1 ---------------------------------------------------------------------------------
 
-def expert_pairs(demos: Demonstrations) -> tuple[torch.Tensor, torch.Tensor]:
-    """All (state, action) pairs of the demonstrations, as tensors."""
-    eps = _bc.episodes(demos)
-    return (torch.from_numpy(np.concatenate([o for o, _ in eps])),
-            torch.from_numpy(np.concatenate([a for _, a in eps])))
+expert_pairs = _bc.pairs   # all (state, action) pairs of the demonstrations, as tensors
 
 
 def _subsample(x: torch.Tensor, n: int, generator: torch.Generator) -> torch.Tensor:
