@@ -296,7 +296,24 @@ plots.coverage_velocity({"expert": f_dc[bench_gail.feature_key("halfcheetah2", "
 plt.show()
 
 # %% [markdown]
-# RESULTS-TABLE-PROSE
+# What the stored runs show (each statement is checked against the files by
+# `tests/test_claims_dc.py`):
+#
+# * **`reacher4` and `halfcheetah2`: DC has the lowest EMD, KL and RKL of the three**, as in the
+#   paper's Table I (reacher4 EMD 0.080 against BC's 0.116 and GAIL's 0.159). **`reacher2`: it
+#   does not**: BC keeps the lowest divergences there, and DC's EMD (0.144) lies between BC's and
+#   GAIL's.
+# * **Return: DC beats both baselines on `reacher2` and `halfcheetah2`** (halfcheetah2 0.75 ±
+#   0.04 against BC's 0.57 ± 0.33 and GAIL's 0.31), **but not on `reacher4`**, where its mean
+#   (0.39) is below its own BC start (0.45); seed by seed it gained on two starts and lost
+#   heavily on the third (0.61 to 0.18). With three seeds and standard deviations near 0.2 to
+#   0.4, none of these return differences is large against the spread.
+# * **DC does not recover the expert's mode mix.** On `reacher2` it sends 0.92 of its episodes
+#   to red, on `halfcheetah2` 0.93 run backwards; on `reacher4` it spreads over three targets
+#   but visits yellow in 0.01 of its episodes. Chapter 2 explains why a mean-action Gaussian
+#   cannot reproduce a coin flip it does not observe; DC uses the same policy class, and this
+#   limit binds it too. What DC changes is *where the states go* (lower EMD on two tasks), not
+#   the proportions of the modes.
 #
 # ## Return against environment interactions (the paper's Figure 5)
 #
@@ -408,7 +425,13 @@ fig.tight_layout()
 plt.show()
 
 # %% [markdown]
-# RESULTS-ABLATION-PROSE
+# On one seed the loop ablation is noisy rather than monotone: L = 1 to 4 give scaled
+# returns 0.17, 0.57, 0.30 and 0.67, and the single long loop 0.28 in less time than L = 4
+# (645 s against 1,062 s). More loops ended higher than one, but the paper's smooth rise and
+# its "one long loop is as good" are not what we see. Consensus ADMM with ρ = 1 did worse than
+# the paper's averaging on `reacher4` (scaled return 0.23 ± 0.13 against 0.39 ± 0.19; EMD 0.090
+# against 0.080): the duals pull both copies back towards a consensus that moves slowly, and
+# with one BC and one PPO pass per iteration the extra machinery bought nothing here.
 #
 # ## Learning-rate robustness (the paper's Figure 4)
 #
@@ -448,7 +471,15 @@ with pd.option_context("display.max_colwidth", 200):
     display(verdicts[["source", "verdict", "evidence", "rule"]])
 
 # %% [markdown]
-# RESULTS-VERDICT-PROSE
+# In short, against our files: the claims about **learning-rate robustness**, **return with
+# few interactions** (DC's stochastic training episodes score higher than GAIL's over the
+# first third of the interactions on all three tasks) and **convergence** of the update (the
+# parameter change per iteration shrinks within every loop, to a median 0.83 of its first
+# quarter) are reproduced by their rules; the robustness result needs a caveat: GAIL already
+# falls from its 0.97 BC start at 3e-4, not only at 1e-3 and above, and DC's flat curve partly
+# reflects that on `halfcheetah` it barely moves its near-expert start. **Lowest divergences**,
+# **higher return**, **GAIL collapses** and **loops** are partly reproduced, and **DC preserves
+# every mode** is not reproduced.
 #
 # ## What it took
 #
@@ -467,7 +498,14 @@ print(f"this chapter ran in {time.perf_counter() - CHAPTER_START:.0f} s at budge
 # %% [markdown]
 # ## Summary
 #
-# RESULTS-SUMMARY
+# * DC is BC plus a PPO step on a state-density reward, averaged in parameter space; the
+#   paper's "ADMM" has no dual variable, and real consensus ADMM did not help here.
+# * On our ports DC gave the lowest EMD/KL/RKL on two of three multi-mode tasks, the best
+#   return on two of three, was insensitive to the learning rate where GAIL was not, and
+#   converged in the sense of Figure 6; it did not reproduce the expert's mode proportions,
+#   which no mean-action Gaussian can do when the mode is an unobserved coin flip.
+# * At the lesson budget a DC run on `reacher4` took the wall time printed above on one CPU
+#   thread of a shared machine; the paper reports 6 GPU hours for the flow alone.
 #
 # ## Exercises
 #
