@@ -279,12 +279,7 @@ def discriminator_step(disc: Discriminator, optimizer: torch.optim.Optimizer, ex
     return {k: float(v.detach()) for k, v in terms.items()}
 
 
-def expert_pairs(demos) -> tuple[torch.Tensor, torch.Tensor]:
-    """All (state, action) pairs of the demonstrations as float32 tensors (the last state of a
-    trajectory, which no action follows, is left out)."""
-    eps = _bc.episodes(demos)
-    return (torch.from_numpy(np.concatenate([o for o, _ in eps])),
-            torch.from_numpy(np.concatenate([a for _, a in eps])))
+expert_pairs = _bc.pairs   # all (state, action) pairs of the demonstrations, as tensors
 
 
 # -- checkpoints ---------------------------------------------------------------------------------
