@@ -117,7 +117,8 @@ from dc_lesson import tasks as _tasks
 from dc_lesson.data import Demonstrations
 from dc_lesson.policies import (GaussianPolicy, PolicyFileError, ValueNetwork,
                                 atomic_torch_save, load_checked)
-from dc_lesson.ppo import EnvBatch, PPOConfig, collect_batch, compute_gae, ppo_update
+from dc_lesson.ppo import (EnvBatch, PPOConfig, check_checkpoint, collect_batch, compute_gae,
+                           ppo_update)
 
 UPDATES = ("average", "admm")
 REWARDS = ("scaled", "raw")
@@ -591,14 +592,8 @@ def _save_checkpoint(path, task, config, loop, it, learner, flow, scale, generat
 
 def _load_checkpoint(path, task, config, learner, generator, envs):
     ckpt = load_checked(path, CHECKPOINT_FORMAT, CHECKPOINT_VERSION, "DC checkpoint")
-    if ckpt["task"] != task:
-        raise PolicyFileError(f"DC checkpoint {path} is of task {ckpt['task']!r}, not {task!r}")
-    if json.loads(ckpt["config"]) != json.loads(config.to_json()):
-        saved, now = json.loads(ckpt["config"]), json.loads(config.to_json())
-        diff = {k: (saved.get(k), now.get(k)) for k in saved.keys() | now.keys()
-                if saved.get(k) != now.get(k)}
-        raise PolicyFileError(f"DC checkpoint {path} was made with another configuration "
-                              f"(saved, now): {diff}; delete it or use the saved one")
+    check_checkpoint(path, ckpt, task, json.loads(ckpt["config"]),
+                     json.loads(config.to_json()), what="DC checkpoint")
     if json.loads(ckpt["policy_args"]) != learner.pi.config():
         raise PolicyFileError(f"DC checkpoint {path} holds a policy built as "
                               f"{ckpt['policy_args']}, not {json.dumps(learner.pi.config())}")

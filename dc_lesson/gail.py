@@ -101,7 +101,7 @@ from torch import nn
 from dc_lesson import bc as _bc
 from dc_lesson import ppo as _ppo
 from dc_lesson import tasks as _tasks
-from dc_lesson.policies import (ACTION_HIGH, ACTION_LOW, GaussianPolicy, PolicyFileError,
+from dc_lesson.policies import (ACTION_HIGH, ACTION_LOW, GaussianPolicy,
                                 ValueNetwork, atomic_torch_save, load_checked, mlp)
 
 REWARD_FORMS = ("gail", "log_d", "logit")
@@ -309,18 +309,8 @@ def load_checkpoint(path, *, task: str, config: GAILConfig, policy, value_fn, di
                     disc_optimizer, generator, disc_generator, envs) -> tuple[int, list]:
     """Restores a run saved by :func:`save_checkpoint` in place; returns (update, log)."""
     ckpt = load_checked(path, CHECKPOINT_FORMAT, CHECKPOINT_VERSION, "GAIL checkpoint")
-    if ckpt["task"] != task:
-        raise PolicyFileError(f"checkpoint {path} is of task {ckpt['task']!r}, not {task!r}")
-    if json.loads(ckpt["config"]) != config.to_dict():
-        saved, now = json.loads(ckpt["config"]), config.to_dict()
-        diff = {k: (saved.get(k), now.get(k)) for k in saved.keys() | now.keys()
-                if saved.get(k) != now.get(k)}
-        raise PolicyFileError(f"checkpoint {path} was made with another configuration "
-                              f"(saved, now): {diff}; delete it or use the saved one")
-    for name, net in (("policy", policy), ("value", value_fn), ("disc", disc)):
-        if json.loads(ckpt[f"{name}_args"]) != net.config():
-            raise PolicyFileError(f"checkpoint {path} holds a {name} network built as "
-                                  f"{ckpt[f'{name}_args']}, not {json.dumps(net.config())}")
+    _ppo.check_checkpoint(path, ckpt, task, json.loads(ckpt["config"]), config.to_dict(),
+                          {"policy": policy, "value": value_fn, "disc": disc})
     policy.load_state_dict(ckpt["policy"])
     value_fn.load_state_dict(ckpt["value"])
     disc.load_state_dict(ckpt["disc"])

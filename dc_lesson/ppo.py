@@ -375,25 +375,33 @@ def save_checkpoint(path, *, task: str, config: PPOConfig, update: int, policy, 
     }, path)
 
 
+def check_checkpoint(path, ckpt: dict, task: str, saved: dict, now: dict,
+                     networks: dict | None = None, what: str = "checkpoint") -> None:
+    """The checks every resumable run makes before loading: the task, the configuration
+    (``saved`` against ``now``, both JSON-able dicts) and the shape of each network
+    (``networks`` maps a name whose ``NAME_args`` the checkpoint holds to the network)."""
+    if ckpt["task"] != task:
+        raise PolicyFileError(f"{what} {path} is of task {ckpt['task']!r}, not {task!r}")
+    if saved != now:
+        diff = {k: (saved.get(k), now.get(k)) for k in saved.keys() | now.keys()
+                if saved.get(k) != now.get(k)}
+        raise PolicyFileError(f"{what} {path} was made with another configuration "
+                              f"(saved, now): {diff}; delete it or use the saved one")
+    for name, net in (networks or {}).items():
+        if json.loads(ckpt[f"{name}_args"]) != net.config():
+            raise PolicyFileError(f"{what} {path} holds a {name} network built as "
+                                  f"{ckpt[f'{name}_args']}, not {json.dumps(net.config())}")
+
+
 def load_checkpoint(path, *, task: str, config: PPOConfig, policy, value_fn, optimizer,
                     generator: torch.Generator, envs: EnvBatch) -> tuple[int, list]:
     """Restores a run saved by :func:`save_checkpoint` in place; returns (update, log)."""
     ckpt = load_checked(path, CHECKPOINT_FORMAT, CHECKPOINT_VERSION, "PPO checkpoint")
-    if ckpt["task"] != task:
-        raise PolicyFileError(f"checkpoint {path} is of task {ckpt['task']!r}, not {task!r}")
     # A knob added to PPOConfig after the checkpoint was written takes its default value.
     defaults = {f.name: f.default for f in dataclasses.fields(PPOConfig)}
     saved = json.loads(json.dumps({**defaults, **json.loads(ckpt["config"])}))
-    now = json.loads(config.to_json())
-    if saved != now:
-        diff = {k: (saved.get(k), now.get(k)) for k in saved.keys() | now.keys()
-                if saved.get(k) != now.get(k)}
-        raise PolicyFileError(f"checkpoint {path} was made with another configuration "
-                              f"(saved, now): {diff}; delete it or use the saved one")
-    for name, net in (("policy", policy), ("value", value_fn)):
-        if json.loads(ckpt[f"{name}_args"]) != net.config():
-            raise PolicyFileError(f"checkpoint {path} holds a {name} network built as "
-                                  f"{ckpt[f'{name}_args']}, not {json.dumps(net.config())}")
+    check_checkpoint(path, ckpt, task, saved, json.loads(config.to_json()),
+                     {"policy": policy, "value": value_fn})
     policy.load_state_dict(ckpt["policy"])
     value_fn.load_state_dict(ckpt["value"])
     optimizer.load_state_dict(ckpt["optimizer"])
@@ -497,6 +505,6 @@ def train(task: str, config: PPOConfig = PPOConfig(), reward_fn: RewardFn | None
     return policy, value_fn, log
 
 
-__all__ = ["Batch", "EnvBatch", "PPOConfig", "SeedStream", "clipped_surrogate", "collect_batch",
+__all__ = ["Batch", "EnvBatch", "PPOConfig", "SeedStream", "check_checkpoint", "clipped_surrogate", "collect_batch",
            "compute_gae", "explained_variance", "load_checkpoint", "ppo_update",
            "save_checkpoint", "train", "value_loss"]
