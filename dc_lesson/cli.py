@@ -4,6 +4,7 @@
                                    then BC, GAIL and DC on reacher4 (the book's headline)
     dc-lesson tasks                the spec table
     dc-lesson expert train --task NAME   train (or resume) the expert of NAME with PPO
+                                   (a planner's: write its settings)
     dc-lesson demos --task NAME    roll out the expert of NAME into data/demos/
     dc-lesson bench rollout        rollout throughput against raw MuJoCo stepping
     dc-lesson bench softflow       SoftFlow's log_prob and training speed against a naive CNF
@@ -87,18 +88,23 @@ def cmd_demos(args) -> int:
 
 def cmd_expert(args) -> int:
     from dc_lesson import rollout
-    from dc_lesson.experts import load_expert, trained
+    from dc_lesson.experts import load_expert, planner, trained
     for name in args.task:
         if args.what == "train":
-            if name not in trained.EXPERT_UNITS:
+            if name in planner.PLANNERS:
+                planner.write_settings(name, command=_command_line())
+                print(f"{name}: the expert is a planner, nothing to train; its settings are in "
+                      f"{planner.settings_path(name)}")
+            elif name in trained.EXPERT_UNITS:
+                for unit in trained.EXPERT_UNITS[name]:
+                    meta = trained.train_unit(unit, total_steps=args.steps,
+                                              command=_command_line())
+                    print(f"{unit}: {meta['steps']} steps, {meta['training_seconds']:.0f} s of "
+                          f"training; saved {trained.unit_paths(unit)['policy']}")
+            else:
                 print(f"dc-lesson: {name} has a scripted expert; nothing to train",
                       file=sys.stderr)
                 continue
-            for unit in trained.EXPERT_UNITS[name]:
-                meta = trained.train_unit(unit, total_steps=args.steps,
-                                          command=_command_line())
-                print(f"{unit}: {meta['steps']} steps, {meta['training_seconds']:.0f} s of "
-                      f"training; saved {trained.unit_paths(unit)['policy']}")
         expert, info = load_expert(name)
         r = rollout.returns(rollout.collect(name, expert, args.episodes, seed=1))
         print(f"{name}: expert ({info['name']}) return {r.mean():.1f} ± {r.std():.1f} over "

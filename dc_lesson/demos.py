@@ -10,6 +10,14 @@ and the command and git revision that made them.
 Seeds: demonstrations use episode seeds from ``DEMO_SEED``, the expert's evaluation from
 ``EXPERT_EVAL_SEED`` and the random policy's from ``RANDOM_EVAL_SEED``, so the three sets of
 episodes start from different initial states.
+
+A planner expert (``dc_lesson.experts.planner``) costs minutes of CPU per episode, so for it
+the expert's return is measured over the 25 demonstrations plus 25 further episodes (50 in
+all, as for every task), not over 50 further ones; the manifest says which.  Its episodes are
+collected a few at a time, each finished group saved atomically under ``data/demos/partial/``
+with a fingerprint of the expert's settings, so an interrupted ``dc-lesson demos`` resumes
+where it stopped (and gives the same file as an uninterrupted run: every episode is a
+function of its seed alone).
 """
 
 from __future__ import annotations
@@ -57,18 +65,68 @@ def _locked(directory):
             fcntl.flock(lock, fcntl.LOCK_UN)
 
 
+def collect_resumable(task: str, policy, n: int, seed: int, partial, fingerprint: str,
+                      chunk: int = 1, progress: bool = True) -> list:
+    """``rollout.collect(task, policy, n, seed)``, ``chunk`` episodes at a time, keeping the
+    finished ones in ``partial`` (an .npz, written atomically) so a rerun continues there."""
+    import pathlib
+    partial = pathlib.Path(partial)
+    stamp = partial.with_suffix(".json")
+    done: list = []
+    if partial.exists() and stamp.exists() and \
+            json.loads(stamp.read_text()).get("fingerprint") == fingerprint:
+        try:
+            done = data.read_demo_file(partial, task)[:n]
+        except data.DemoError:
+            done = []          # a damaged partial file: start this set again
+    bar = None
+    if progress:
+        from tqdm.auto import tqdm
+        bar = tqdm(total=n, initial=len(done), desc=f"{task} episodes (seed {seed})",
+                   unit="episode")
+    while len(done) < n:
+        k = min(chunk, n - len(done))
+        done += rollout.collect(task, policy, k, seed=seed, first=len(done), batch=k,
+                                progress=False)
+        partial.parent.mkdir(parents=True, exist_ok=True)
+        atomic_write_text(stamp, json.dumps({"fingerprint": fingerprint, "seed": seed,
+                                             "episodes": len(done)}) + "\n")
+        data.save_demos(done, partial)
+        if bar is not None:
+            bar.update(k)
+    if bar is not None:
+        bar.close()
+    return done
+
+
 def make_demos(task: str, command: str = "", directory=None, n_demos: int = N_DEMOS,
                n_eval: int = N_EVAL, progress: bool = True) -> dict:
     """Generates, stores and registers the demonstrations of ``task``; returns its entry."""
+    import hashlib
+    import pathlib
     from dc_lesson.experts import load_expert
     _tasks.check_name(task)
     directory = data.DEMOS_DIR if directory is None else directory
-    import pathlib
     directory = pathlib.Path(directory)
     expert, info = load_expert(task)
     t0 = time.time()
-    demos = rollout.collect(task, expert, n_demos, seed=DEMO_SEED, progress=progress)
-    expert_eval = rollout.collect(task, expert, n_eval, seed=EXPERT_EVAL_SEED, progress=progress)
+    planner = info.get("kind") == "planner"
+    if planner:
+        fingerprint = hashlib.sha256(json.dumps([info, _tasks.spec(task).horizon],
+                                                sort_keys=True).encode()).hexdigest()
+        part = directory / "partial"
+        demos = collect_resumable(task, expert, n_demos, DEMO_SEED, part / f"{task}-demos.npz",
+                                  fingerprint, progress=progress)
+        more = collect_resumable(task, expert, max(0, n_eval - n_demos), EXPERT_EVAL_SEED,
+                                 part / f"{task}-eval.npz", fingerprint, progress=progress)
+        expert_eval = demos + more
+        eval_note = (f"the {n_demos} demonstrations and {len(more)} further episodes "
+                     f"(seed {EXPERT_EVAL_SEED}): a planner costs minutes per episode")
+    else:
+        demos = rollout.collect(task, expert, n_demos, seed=DEMO_SEED, progress=progress)
+        expert_eval = rollout.collect(task, expert, n_eval, seed=EXPERT_EVAL_SEED,
+                                      progress=progress)
+        eval_note = f"{n_eval} episodes beside the demonstrations (seed {EXPERT_EVAL_SEED})"
     random_eval = rollout.collect(task, rollout.RandomPolicy(task, seed=RANDOM_EVAL_SEED), n_eval,
                                   seed=RANDOM_EVAL_SEED, progress=progress)
     path = directory / f"{task}.npz"
@@ -81,6 +139,7 @@ def make_demos(task: str, command: str = "", directory=None, n_demos: int = N_DE
         "expert": info,
         "demo_return": _stats(rollout.returns(demos)),
         "expert_return": _stats(rollout.returns(expert_eval)),
+        "expert_return_episodes": eval_note,
         "random_return": _stats(rollout.returns(random_eval)),
         "demo_mode_shares": mode_shares(task, demos),
         "expert_mode_shares": mode_shares(task, expert_eval),
@@ -98,4 +157,6 @@ def make_demos(task: str, command: str = "", directory=None, n_demos: int = N_DE
         manifest["tasks"] = dict(sorted(manifest["tasks"].items(),
                                         key=lambda kv: _tasks.NAMES.index(kv[0])))
         atomic_write_text(directory / "manifest.json", json.dumps(manifest, indent=1) + "\n")
+    for leftover in (directory / "partial").glob(f"{task}-*"):
+        leftover.unlink()      # the finished file replaces the partial ones
     return entry

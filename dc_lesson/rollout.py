@@ -11,6 +11,10 @@ flip, say) may define ``reset(seeds)``: :func:`collect` calls it with the batch'
 (an int64 array) before the first step of every batch, so its choices are a deterministic
 function of the episode seed.
 
+A policy that plans on the simulator (``dc_lesson.experts.planner``) may define
+``attach(venv)``: :func:`collect` hands it the running environments before the first batch;
+it reads their physics states and never changes them.
+
 Seeds: episode ``i`` of ``collect(..., seed=s)`` starts from the task's initial-state
 distribution seeded with ``episode_seeds(s, n)[i]``, so the same call gives the same episodes,
 and the first k episodes of a longer call are the same as those of a shorter one.
@@ -89,7 +93,7 @@ def trajectory_mode(task: _tasks.PortTask, mode_features: np.ndarray) -> int:
 
 def collect(task: str, policy: Policy, n_episodes: int, seed: int = 0, *,
             batch: int = 16, max_steps: int | None = None,
-            progress: bool | None = None, venv=None) -> list[Trajectory]:
+            progress: bool | None = None, venv=None, first: int = 0) -> list[Trajectory]:
     """Runs ``n_episodes`` episodes of ``policy`` on ``task``.
 
     Args:
@@ -102,13 +106,15 @@ def collect(task: str, policy: Policy, n_episodes: int, seed: int = 0, *,
         progress: show a progress bar (default: when the run is longer than a few seconds).
         venv: a :class:`~dc_lesson.tasks.VecEnv` of ``task`` to reuse (its size is the batch);
             algorithms that collect every iteration keep one instead of building it each time.
+        first: skip the first ``first`` episodes of the seed's sequence (to continue an
+            interrupted collection: ``first=k`` gives episodes k, k+1, ... of ``seed``).
     """
     spec = _tasks.spec(task)
     if n_episodes < 1:
         raise ValueError(f"n_episodes must be at least 1, got {n_episodes}")
     T = spec.horizon if max_steps is None else min(int(max_steps), spec.horizon)
     act = as_batch_policy(policy)
-    seeds = episode_seeds(seed, n_episodes)
+    seeds = episode_seeds(seed, first + n_episodes)[first:]
     if venv is None:
         venv = _tasks.load_vec(task, max(1, min(batch, n_episodes)))
     elif venv.spec.name != task:
@@ -120,6 +126,8 @@ def collect(task: str, policy: Policy, n_episodes: int, seed: int = 0, *,
         from tqdm.auto import tqdm
         bar = tqdm(total=n_episodes * T, desc=f"{task} rollouts", unit="step", leave=False)
 
+    if hasattr(policy, "attach"):
+        policy.attach(venv)
     out: list[Trajectory] = []
     for start in range(0, n_episodes, venv.n_envs):
         chunk = seeds[start:start + venv.n_envs]

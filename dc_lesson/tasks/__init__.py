@@ -96,6 +96,11 @@ def load(name: str, seed: int | None = None, *, _model=None) -> TaskEnv:
     return TaskEnv(port.spec, physics, port.task(random=np.random.RandomState(seed)))
 
 
+def model_and_assets(name: str) -> tuple:
+    """The MJCF text and asset dict of task ``name``'s model (what a planner copies)."""
+    return _PORTS[check_name(name)].model_and_assets()
+
+
 def load_vec(name: str, n_envs: int) -> VecEnv:
     """``n_envs`` copies of task ``name`` stepped in lockstep (see :class:`VecEnv`)."""
     if n_envs < 1:

@@ -1,0 +1,131 @@
+"""The predictive-sampling planner: exact reward prediction, determinism, that it plans at
+all (against random actions), its settings file, and resumable demonstration runs."""
+
+import json
+
+import numpy as np
+import pytest
+
+from dc_lesson import demos, rollout, tasks
+from dc_lesson.experts import load_expert, planner
+from dc_lesson.experts.planner import PlannerConfig, PredictiveSampling
+from tests.test_ppo import permutation_p_value
+
+TINY = PlannerConfig(n_samples=6, horizon=0.1, n_knots=3, noise=0.3)
+
+
+def _run(task, config, seeds, steps):
+    """Actions and rewards of the planner over ``steps`` control steps of episodes ``seeds``."""
+    p = PredictiveSampling(task, config)
+    venv = tasks.load_vec(task, len(seeds))
+    p.attach(venv)
+    p.reset(np.asarray(seeds))
+    obs, _ = venv.reset(seeds)
+    actions, rewards, predicted = [], [], []
+    for _ in range(steps):
+        a = venv.check_actions(p(obs))
+        obs, r, _, _ = venv.step(a)
+        actions.append(a)
+        rewards.append(r)
+        predicted.append(p.last_first_reward.copy())
+    return np.array(actions), np.array(rewards), np.array(predicted)
+
+
+@pytest.mark.parametrize("task", ["walker", "hopper", "ant", "humanoid", "halfcheetah"])
+def test_the_planner_predicts_the_tasks_own_reward_exactly(task):
+    # Its model copy only adds sensors, and it scores with the task's batch_reward: the reward
+    # predicted for the step it takes is the reward the environment then pays.
+    _, rewards, predicted = _run(task, TINY, [3], 12)
+    np.testing.assert_allclose(predicted, rewards, rtol=0, atol=1e-9)
+    assert np.ptp(rewards) > 0       # not a constant that would match trivially
+
+
+def test_the_planners_model_copy_steps_like_the_task():
+    p = PredictiveSampling("walker", TINY)
+    env = tasks.load("walker", seed=1)
+    env.reset(seed=1)
+    base = env.physics.model.ptr
+    m = p.sensed.model
+    assert m.nsensordata == base.nsensordata + 10 * (base.nbody - 1)
+    np.testing.assert_array_equal(m.opt.timestep, base.opt.timestep)
+    np.testing.assert_array_equal(m.actuator_ctrlrange, base.actuator_ctrlrange)
+
+
+def test_the_planner_is_deterministic_and_each_episode_depends_on_its_seed_alone():
+    a1, r1, _ = _run("hopper", TINY, [11], 5)
+    a2, r2, _ = _run("hopper", TINY, [11], 5)
+    np.testing.assert_array_equal(a1, a2)
+    # The same episode beside another one, and with two rollout threads: the same actions.
+    a3, _, _ = _run("hopper", TINY, [11, 12], 5)
+    a4, _, _ = _run("hopper", PlannerConfig(**{**TINY.__dict__, "threads": 2}), [11], 5)
+    np.testing.assert_array_equal(a1[:, 0], a3[:, 0])
+    np.testing.assert_array_equal(a1, a4)
+    # Another planner seed samples other plans.
+    a5, _, _ = _run("hopper", PlannerConfig(**{**TINY.__dict__, "seed": 1}), [11], 5)
+    assert not np.array_equal(a1, a5)
+
+
+def test_the_planner_beats_random_actions():
+    # halfcheetah's run reward is a cheap, unambiguous signal: 8 short episodes each.
+    config = PlannerConfig(n_samples=16, horizon=0.15, n_knots=3, noise=0.5)
+    steps, seeds = 150, list(range(8))
+    _, planned, _ = _run("halfcheetah", config, seeds, steps)
+    venv = tasks.load_vec("halfcheetah", len(seeds))
+    venv.reset(seeds)
+    rand = rollout.RandomPolicy("halfcheetah", seed=0)
+    rand.reset(np.array(seeds))
+    randoms = [venv.step(rand(np.zeros((len(seeds), 1))))[1] for _ in range(steps)]
+    planned, randoms = planned.sum(0), np.array(randoms).sum(0)
+    assert permutation_p_value(planned, randoms) < 0.01
+    assert planned.mean() - randoms.mean() > 10      # 150 steps: at least 0.07 m/s more
+
+
+def test_bad_settings_and_misuse_give_clear_errors():
+    with pytest.raises(ValueError, match="n_samples must be at least 2"):
+        PredictiveSampling("walker", PlannerConfig(n_samples=1))
+    with pytest.raises(ValueError, match="unknown planning reward 'nope'.*humanoid-shaped"):
+        PredictiveSampling("walker", PlannerConfig(planning_reward="nope"))
+    with pytest.raises(tasks.UnknownTaskError, match="the tasks are"):
+        PredictiveSampling("walkerr", TINY)
+    p = PredictiveSampling("walker", TINY)
+    with pytest.raises(RuntimeError, match="attach"):
+        p(np.zeros((1, 24), np.float32))
+    with pytest.raises(ValueError, match="cannot act in 'hopper'"):
+        p.attach(tasks.load_vec("hopper", 1))
+
+
+def test_planner_tasks_load_as_planners_and_write_their_settings(tmp_path):
+    for task in planner.PLANNERS:
+        expert, info = load_expert(task)
+        assert isinstance(expert, PredictiveSampling) and info["kind"] == "planner"
+        assert info["config"] == planner.PLANNERS[task].__dict__
+        written = planner.write_settings(task, command="test", directory=tmp_path)
+        assert json.loads(planner.settings_path(task, tmp_path).read_text()) == written
+    with pytest.raises(ValueError, match="planner experts exist for"):
+        planner.write_settings("cartpole", directory=tmp_path)
+
+
+def test_an_interrupted_collection_resumes_to_the_same_episodes(tmp_path, monkeypatch):
+    policy = rollout.RandomPolicy("cartpole", seed=4)
+    part = tmp_path / "partial" / "cartpole-demos.npz"
+    first = demos.collect_resumable("cartpole", policy, 2, 5, part, "fp", progress=False)
+    assert json.loads(part.with_suffix(".json").read_text())["episodes"] == 2
+    calls = []
+    original = rollout.collect
+
+    def counting(*a, **k):
+        calls.append(k.get("first"))
+        return original(*a, **k)
+    monkeypatch.setattr(rollout, "collect", counting)
+    # "Interrupted" after 2 of 3: the rerun reads those 2 and collects only the third.
+    resumed = demos.collect_resumable("cartpole", policy, 3, 5, part, "fp", progress=False)
+    assert calls == [2]
+    straight = original("cartpole", policy, 3, seed=5)
+    for a, b in zip(resumed, straight):
+        np.testing.assert_array_equal(a.actions, b.actions)
+        np.testing.assert_array_equal(a.observations, b.observations)
+    assert [t.seed for t in resumed[:2]] == [t.seed for t in first]
+    # Another expert (another fingerprint) does not reuse the partial file.
+    calls.clear()
+    demos.collect_resumable("cartpole", policy, 3, 5, part, "other", progress=False)
+    assert calls == [0, 1, 2]
