@@ -94,7 +94,9 @@ def cmd_expert(args) -> int:
             if name in planner.PLANNERS:
                 planner.write_settings(name, command=_command_line())
                 print(f"{name}: the expert is a planner, nothing to train; its settings are in "
-                      f"{planner.settings_path(name)}")
+                      f"{planner.settings_path(name)}; evaluating it costs minutes per episode: "
+                      f"dc-lesson expert eval --task {name} --episodes N")
+                continue
             elif name in trained.EXPERT_UNITS:
                 for unit in trained.EXPERT_UNITS[name]:
                     meta = trained.train_unit(unit, total_steps=args.steps,

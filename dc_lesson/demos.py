@@ -87,7 +87,7 @@ def collect_resumable(task: str, policy, n: int, seed: int, partial, fingerprint
     while len(done) < n:
         k = min(chunk, n - len(done))
         done += rollout.collect(task, policy, k, seed=seed, first=len(done), batch=k,
-                                progress=False)
+                                progress=progress)
         partial.parent.mkdir(parents=True, exist_ok=True)
         atomic_write_text(stamp, json.dumps({"fingerprint": fingerprint, "seed": seed,
                                              "episodes": len(done)}) + "\n")

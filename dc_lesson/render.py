@@ -41,6 +41,25 @@ def episode_frames(task: str, policy: Policy, seed: int = 0, n_steps: int = 100,
     return frames
 
 
+def trajectory_frames(traj, steps, height: int = 120, width: int = 160,
+                      camera=None) -> list[np.ndarray]:
+    """Frames of a stored trajectory at control steps ``steps`` (0 = its initial state),
+    replayed from its initial state with its stored actions: no expert needs to run."""
+    env = _tasks.load(traj.task)
+    env.reset(seed=traj.seed)
+    env.set_state(traj.initial_state)
+    wanted = sorted(set(int(s) for s in steps))
+    if wanted and not 0 <= wanted[0] <= wanted[-1] <= len(traj.actions):
+        raise ValueError(f"steps must lie in [0, {len(traj.actions)}], got {wanted}")
+    frames = {}
+    for t in range(wanted[-1] + 1 if wanted else 0):
+        if t in wanted:
+            frames[t] = env.render(height, width, camera)
+        if t < len(traj.actions) and t < wanted[-1]:
+            env.step(traj.actions[t])
+    return [frames[int(s)] for s in steps]
+
+
 def gif_bytes(frames: list[np.ndarray], fps: float = 20) -> bytes:
     from PIL import Image
     if not frames:
