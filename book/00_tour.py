@@ -5,6 +5,8 @@
 #     text_representation:
 #       extension: .py
 #       format_name: percent
+#       format_version: '1.3'
+#       jupytext_version: 1.19.6
 #   kernelspec:
 #     display_name: Python 3
 #     language: python
@@ -208,8 +210,36 @@ print("replay identical:", np.array_equal(obs, traj.observations)
 #   state), and a learner must commit to a mode by itself. Had the expert gone to the target
 #   nearest its start, the mode would be a function of the initial state, which a
 #   single-Gaussian policy can represent, and there would be little to collapse.
-# * The locomotion tasks: policies trained with the library's PPO (table below once they
-#   exist; tasks without demonstrations yet are listed as such).
+# * `halfcheetah`, `hopper`, `walker`, `ant`: policies trained with the library's PPO
+#   (`dc-lesson expert train --task NAME`, a few million steps each, checkpointed so a run
+#   survives interruption). `halfcheetah2` joins a forward and a backward runner by the same
+#   per-episode coin flip as the reachers.
+# * `humanoid`: no policy at all, but a **planner on the true simulator**. Predictive sampling
+#   (the simplest planner of MuJoCo MPC) keeps a plan of actions for the next half second and,
+#   every other control step, tries 128 noisy variants of it from the simulator's exact
+#   current state and keeps the best:
+#
+#   ```
+#   plan ← zeros(knots, actions)
+#   every k-th control step:
+#       candidates ← [plan + σ·noise for 127 draws] + [plan]       # keep the old plan too
+#       score(c) ← Σ_{h<H} reward(rollout(state, c)[h])            # mujoco.rollout, in C
+#       plan ← argmax score
+#   act ← plan(now); shift the plan one step
+#   ```
+#
+#   It scores rollouts with the task's own reward function, computed from extra sensors in a
+#   copy of the model: the reward it predicts for a step is, to $10^{-9}$, the reward the
+#   environment pays (`tests/test_planner.py`). The humanoid's walk reward is flat zero
+#   whenever the head is low, so a planner whose robot starts to fall sees no way back up
+#   within its half-second horizon; it therefore plans with that reward plus a smoothly
+#   shaped "stay tall and upright" term (`planner.PLANNING_REWARDS`), and is judged on the
+#   task's own reward like every other expert. A planner needs no training but costs
+#   minutes of CPU per episode (the manifest records the wall time): the demonstrations were
+#   made once and shipped.
+#
+# The table lists, for each task, the expert, its return over 50 episodes, the random
+# policy's, and the mode shares (tasks without demonstrations yet say so).
 
 # %%
 from dc_lesson import data
@@ -256,6 +286,43 @@ if "reacher4" in manifest:
                                      lw=2))
     axes[1].set_aspect("equal")
     axes[1].set_title("reacher4 demonstrations: fingertip")
+plt.tight_layout()
+plt.show()
+
+# %% [markdown]
+# ### Does each expert clear its bar?
+#
+# We set each task a floor, a return a clearly competent expert reaches (for example 700 for
+# a reacher, whose targets must each be reached and held; 300 for a walking humanoid), and
+# check it from the stored files with `dc_lesson.experts.floors`: the mean return over the
+# 50 evaluation episodes, per mode for the multi-mode tasks, and for the hopper whether it
+# actually hops forward (standing still earns a quarter of the reward, so its return alone
+# could pass). **Not every expert clears its floor**, and the table says which: those tasks'
+# demonstrations are still what a learner imitates, and scaled returns are still measured
+# against that expert, so on them "1.0" means "as good as our expert", not "solved".
+
+# %%
+from dc_lesson.experts import floors
+
+pd.DataFrame(floors.report()).set_index("task").round(1).fillna("")
+
+# %% [markdown]
+# Every expert, seen through its first demonstration: frames replayed from the stored
+# initial state and actions (so no expert has to run here), at the start, a quarter, half
+# and the end of the episode.
+
+# %%
+steps = [0, 250, 500, 1000]
+fig, axes = plt.subplots(len(have), len(steps), figsize=(1.9 * len(steps), 1.5 * len(have)))
+for row, name in zip(np.atleast_2d(axes), have):
+    demo = data.load_demos(name, n_trajectories=1).trajectories[0]
+    for ax, step, img in zip(row, steps, render.trajectory_frames(demo, steps, 96, 128)):
+        ax.imshow(img)
+        ax.set_xticks([])
+        ax.set_yticks([])
+        if name == have[0]:
+            ax.set_title(f"step {step}", fontsize=9)
+    row[0].set_ylabel(name, fontsize=9)
 plt.tight_layout()
 plt.show()
 
