@@ -216,12 +216,12 @@ print("replay identical:", np.array_equal(obs, traj.observations)
 #   per-episode coin flip as the reachers.
 # * `humanoid`: no policy at all, but a **planner on the true simulator**. Predictive sampling
 #   (the simplest planner of MuJoCo MPC) keeps a plan of actions for the next half second and,
-#   every other control step, tries 128 noisy variants of it from the simulator's exact
-#   current state and keeps the best:
+#   at every control step, tries 128 noisy variants of it from the simulator's exact current
+#   state and keeps the best:
 #
 #   ```
 #   plan ← zeros(knots, actions)
-#   every k-th control step:
+#   every control step:
 #       candidates ← [plan + σ·noise for 127 draws] + [plan]       # keep the old plan too
 #       score(c) ← Σ_{h<H} reward(rollout(state, c)[h])            # mujoco.rollout, in C
 #       plan ← argmax score

@@ -310,14 +310,15 @@ class PredictiveSampling:
 
 
 # The tasks whose expert is this planner, with its settings, chosen by short trials on this
-# machine (300-step episodes, one seed each, so a guide rather than a measurement):
-# humanoid with 128 samples walked where 64 or 96 fell; replanning every second step halves
-# the cost (about 0.15 s per control step on 2 threads) so that 50 episodes fit in a session.
+# machine (300-step episodes, one seed each: a guide, not a measurement): humanoid with 128
+# samples walked where 64 or 96 fell; replanning only every second step (half the cost) gave
+# a humanoid that kept falling and getting up (157 in a whole episode).  At about 0.15 s per
+# control step on 2 threads its 50 episodes take over two hours; they resume if interrupted.
 # PPO experts serve hopper, walker and ant: the planner made the hopper fall within 50 steps
-# whatever its horizon or shaping, and the ant stall on its side (about 0.1-0.2 per step).
+# whatever its horizon or shaping, and left the ant stalled (about 0.1 per step).
 PLANNERS: dict[str, PlannerConfig] = {
     "humanoid": PlannerConfig(n_samples=128, horizon=0.5, n_knots=4, noise=0.3,
-                              replan_every=2, planning_reward="humanoid-shaped"),
+                              replan_every=1, planning_reward="humanoid-shaped"),
 }
 
 
