@@ -310,10 +310,11 @@ class PredictiveSampling:
 
 
 # The tasks whose expert is this planner, with its settings, chosen by short trials on this
-# machine (300-step episodes, one seed each: a guide, not a measurement): humanoid with 128
-# samples walked where 64 or 96 fell; replanning only every second step (half the cost) gave
-# a humanoid that kept falling and getting up (157 in a whole episode).  At about 0.15 s per
-# control step on 2 threads its 50 episodes take over two hours; they resume if interrupted.
+# machine (one seed each: a guide, not a measurement).  Humanoid, 300-step trials: 64 samples
+# over 0.5 s scored 74, 96 over 0.4 s 87, 128 over 0.3 s 24 in 200 steps, all falling;
+# 128 over 0.5 s walked, and scored 577 over its first whole demonstration.  Replanning only
+# every second step kept falling and getting up (157 per episode).  The cost: about 0.5 s of
+# CPU per control step, so 50 episodes take hours; ``dc-lesson demos`` resumes if stopped.
 # PPO experts serve hopper, walker and ant: the planner made the hopper fall within 50 steps
 # whatever its horizon or shaping, and left the ant stalled (about 0.1 per step).
 PLANNERS: dict[str, PlannerConfig] = {
