@@ -74,4 +74,4 @@ def test_load_expert_covers_every_task_or_says_how_to_make_it():
         except trained.ExpertMissing as e:
             assert "dc-lesson expert train" in str(e)
         else:
-            assert callable(policy) and info["kind"] in ("scripted", "trained")
+            assert callable(policy) and info["kind"] in ("scripted", "trained", "planner")
