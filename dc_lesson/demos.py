@@ -65,20 +65,45 @@ def _locked(directory):
             fcntl.flock(lock, fcntl.LOCK_UN)
 
 
+def _resumable_episodes(task: str, partial, stamp, fingerprint: str, seed: int) -> list:
+    """The finished episodes kept in ``partial``, or [] when they cannot be trusted to be
+    episodes 0, 1, ... of ``seed`` by the expert with ``fingerprint``."""
+    if not (partial.exists() and stamp.exists()):
+        return []
+    try:
+        info = json.loads(stamp.read_text())
+        if not isinstance(info, dict) or info.get("fingerprint") != fingerprint or \
+                info.get("seed") != seed:
+            return []
+        # The stamp names its file by sha256 (older stamps, written just before their file,
+        # only by a count the file cannot exceed): a file left by another expert or seed
+        # beside a fresh stamp is not taken for this one's.
+        if "sha256" in info:
+            if data.sha256(partial) != info["sha256"]:
+                return []
+        done = data.read_demo_file(partial, task)
+        if "sha256" not in info and len(done) > int(info.get("episodes", 0)):
+            return []
+    except (ValueError, data.DemoError):
+        return []              # a damaged stamp or partial file: start this set again
+    expected = rollout.episode_seeds(seed, len(done))
+    if [t.seed for t in done] != [int(s) for s in expected]:
+        return []
+    return done
+
+
 def collect_resumable(task: str, policy, n: int, seed: int, partial, fingerprint: str,
                       chunk: int = 1, progress: bool = True) -> list:
     """``rollout.collect(task, policy, n, seed)``, ``chunk`` episodes at a time, keeping the
-    finished ones in ``partial`` (an .npz, written atomically) so a rerun continues there."""
+    finished ones in ``partial`` (an .npz, written atomically, then named with its sha256 in
+    a stamp beside it, ``partial`` with suffix .json) so a rerun continues there.
+
+    ``fingerprint`` must change whenever the policy's actions would: the stored episodes of
+    another fingerprint (or seed) are not reused."""
     import pathlib
     partial = pathlib.Path(partial)
     stamp = partial.with_suffix(".json")
-    done: list = []
-    if partial.exists() and stamp.exists() and \
-            json.loads(stamp.read_text()).get("fingerprint") == fingerprint:
-        try:
-            done = data.read_demo_file(partial, task)[:n]
-        except data.DemoError:
-            done = []          # a damaged partial file: start this set again
+    done = _resumable_episodes(task, partial, stamp, fingerprint, seed)[:n]
     bar = None
     if progress:
         from tqdm.auto import tqdm
@@ -89,9 +114,9 @@ def collect_resumable(task: str, policy, n: int, seed: int, partial, fingerprint
         done += rollout.collect(task, policy, k, seed=seed, first=len(done), batch=k,
                                 progress=progress)
         partial.parent.mkdir(parents=True, exist_ok=True)
+        digest = data.save_demos(done, partial)
         atomic_write_text(stamp, json.dumps({"fingerprint": fingerprint, "seed": seed,
-                                             "episodes": len(done)}) + "\n")
-        data.save_demos(done, partial)
+                                             "episodes": len(done), "sha256": digest}) + "\n")
         if bar is not None:
             bar.update(k)
     if bar is not None:

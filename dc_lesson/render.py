@@ -26,9 +26,14 @@ def frame(task: str, seed: int = 0, height: int = 240, width: int = 320,
 def episode_frames(task: str, policy: Policy, seed: int = 0, n_steps: int = 100,
                    every: int = 2, height: int = 180, width: int = 240,
                    camera=None) -> list[np.ndarray]:
-    """Runs one episode of ``policy`` for ``n_steps`` and renders every ``every``-th step."""
+    """Runs one episode of ``policy`` for ``n_steps`` and renders every ``every``-th step.
+
+    A policy that plans on the simulator (``attach``, see :func:`dc_lesson.rollout.collect`)
+    is attached to this episode's environment first."""
     env = _tasks.load(task)
     act = as_batch_policy(policy)
+    if hasattr(policy, "attach"):
+        policy.attach(_tasks.VecEnv([env]))
     obs = env.reset(seed=seed)
     if hasattr(policy, "reset"):
         policy.reset(np.array([seed], dtype=np.int64))

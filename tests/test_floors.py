@@ -36,6 +36,9 @@ def test_a_hopper_that_only_stands_misses_the_floor_despite_its_return():
     assert floors.check("hopper", _entry(600, ["single"]), hopping)["meets floor"]
     falls = hopping[:2] + [_traj(300, speed=1.0, height=0.3)]
     assert not floors.check("hopper", _entry(500, ["single"]), falls)["meets floor"]
+    # Every demonstration must hop: a fast mean over them does not hide one that stands.
+    one_stands = hopping[:2] + [_traj(250, speed=0.0)]
+    assert not floors.check("hopper", _entry(500, ["single"]), one_stands)["meets floor"]
 
 
 def test_the_report_covers_every_task_and_agrees_with_the_manifest():

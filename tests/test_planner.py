@@ -40,6 +40,69 @@ def test_the_planner_predicts_the_tasks_own_reward_exactly(task):
     assert np.ptp(rewards) > 0       # not a constant that would match trivially
 
 
+@pytest.mark.parametrize("task", ["hopper", "humanoid"])
+def test_the_planner_predicts_the_environments_data_over_its_whole_horizon(task):
+    # Every rebuilt MjData field after every step of an open-loop sequence, not only the
+    # first reward: the state/sensor index arithmetic, and the touch and force sensors,
+    # which the environment holds from an earlier stage of its last physics step.
+    p = PredictiveSampling(task, TINY)
+    venv = tasks.load_vec(task, 1)
+    p.attach(venv)
+    venv.reset([7])
+    rng = np.random.default_rng(1)
+    for _ in range(20):
+        venv.step(rng.uniform(-1, 1, (1, venv.spec.act_dim)))
+    H = 6
+    controls = rng.uniform(p.low, p.high, (1, H, venv.spec.act_dim))
+    fields = p.predicted_fields(p._states(1), controls)
+    predicted = p.predict(p._states(1), controls)[0]
+    d = venv.envs[0].physics.data
+    for j in range(H):
+        _, reward, _, _ = venv.step(controls[:, j])
+        for k, v in fields.items():
+            np.testing.assert_allclose(v[j], getattr(d, k), rtol=1e-9, atol=1e-9, err_msg=k)
+        assert abs(predicted[j] - reward[0]) < 1e-9
+
+
+def test_plans_interpolate_their_knots_and_shift_one_step():
+    p = PredictiveSampling("walker", PlannerConfig(n_samples=2, horizon=0.25, n_knots=4))
+    H, t = p.H, np.arange(p.H)
+    a, b = np.random.default_rng(0).normal(size=(2, 6))
+    linear = a + b * p.knot_t[:, None]                     # a plan linear in time
+    np.testing.assert_allclose(p._controls(linear[None])[0], a + b * t[:, None], atol=1e-12)
+    shifted = p._shift(linear[None])[0]
+    np.testing.assert_allclose(shifted, a + b * np.minimum(p.knot_t + 1, H - 1)[:, None],
+                               atol=1e-12)
+    kinked = np.zeros((1, 4, 6))
+    kinked[0, 1] = 1.0                                     # a tent: 0, 1, 0, 0
+    c = p._controls(kinked)[0, :, 0]
+    assert c[0] == 0 and c[-1] == 0 and c.max() <= 1 and np.all(c >= 0)
+    np.testing.assert_allclose(p._shift(kinked)[0, -1], 0)  # held at its end
+
+
+def test_replanning_every_k_steps_plans_on_steps_1_k_plus_1_and_follows_the_plan_between():
+    p = PredictiveSampling("walker", PlannerConfig(**{**TINY.__dict__, "replan_every": 3}))
+    venv = tasks.load_vec("walker", 1)
+    p.attach(venv)
+    p.reset([2])
+    obs, _ = venv.reset([2])
+    planned, original = [], p.plan
+    p.plan = lambda states: planned.append(p.t) or original(states)
+    for _ in range(7):
+        expected = p.nominal[:, 0].copy()
+        action = p(obs)
+        if p.t not in planned:
+            np.testing.assert_array_equal(action, expected)
+            assert p.last_first_reward is None
+        obs, _, _, _ = venv.step(venv.check_actions(action))
+    assert planned == [1, 4, 7]
+
+
+def test_a_task_whose_reward_reads_what_the_rollouts_do_not_give_is_refused():
+    with pytest.raises(ValueError, match="geom_xpos"):
+        PredictiveSampling("reacher1", TINY)
+
+
 def test_the_planners_model_copy_steps_like_the_task():
     p = PredictiveSampling("walker", TINY)
     env = tasks.load("walker", seed=1)
@@ -131,3 +194,40 @@ def test_an_interrupted_collection_resumes_to_the_same_episodes(tmp_path, monkey
     calls.clear()
     demos.collect_resumable("cartpole", policy, 3, 5, part, "other", progress=False)
     assert calls == [0, 1, 2]
+
+
+def test_a_partial_file_is_reused_only_with_its_own_stamp(tmp_path, monkeypatch):
+    policy = rollout.RandomPolicy("cartpole", seed=4)
+    part = tmp_path / "cartpole-demos.npz"
+    stamp = part.with_suffix(".json")
+    demos.collect_resumable("cartpole", policy, 2, 5, part, "fp", progress=False)
+    info = json.loads(stamp.read_text())
+    calls = []
+    original = rollout.collect
+
+    def counting(*a, **k):
+        calls.append(k.get("first"))
+        return original(*a, **k)
+    monkeypatch.setattr(rollout, "collect", counting)
+
+    def rerun(fingerprint="fp", seed=5):
+        calls.clear()
+        demos.collect_resumable("cartpole", policy, 2, seed, part, fingerprint, progress=False)
+        return calls
+
+    # Another seed, the same expert: the stored episodes are other episodes.
+    assert rerun(seed=6) == [0, 1]
+    assert rerun(seed=5) == [0, 1]       # the file now holds seed 6's: not seed 5's
+    # A stamp that names another file (an interrupted run of another expert wrote its stamp
+    # beside this file): not reused.
+    stamp.write_text(json.dumps({**info, "sha256": "0" * 64}))
+    assert rerun() == [0, 1]
+    # A stamp of the older format (no sha256, written just before its file) is read when its
+    # count covers the file, and not when the file holds more than it says.
+    legacy = {k: v for k, v in json.loads(stamp.read_text()).items() if k != "sha256"}
+    stamp.write_text(json.dumps(legacy))
+    assert rerun() == []
+    stamp.write_text(json.dumps({**legacy, "episodes": 1}))
+    assert rerun() == [0, 1]
+    stamp.write_text("not json")
+    assert rerun() == [0, 1]

@@ -4,9 +4,10 @@ Predictive sampling (Howell et al., 2022, "Predictive Sampling: Real-time Behavi
 with MuJoCo", the simplest planner of MuJoCo MPC) needs no training at all.  At every control
 step it
 
-1. keeps a *nominal plan*: actions at ``n_knots`` evenly spaced times over the next
-   ``horizon`` seconds, linearly interpolated between them, shifted forward one control step
-   after each step (held at its last value past the end);
+1. keeps a *nominal plan*: actions at ``n_knots`` evenly spaced control steps from now to
+   the last of the H = ``horizon`` / control timestep steps looked ahead, linearly
+   interpolated between them, shifted forward one control step after each step by
+   re-sampling it at the knots one step later (held at its last value past the end);
 2. draws ``n_samples - 1`` candidate plans, the nominal plus Gaussian noise of std ``noise``
    on every knot (clipped to the action bounds), and keeps the unperturbed nominal as the
    last candidate, so a good plan is never lost to noise;
@@ -23,10 +24,14 @@ model with extra frame sensors (every body's position, inertial position and ori
 appended after the task's own sensors.  From the rollout's sensor readings it rebuilds the
 MjData fields the task's ``batch_reward`` reads, and calls that very function: the reward
 the planner predicts for its first step is the reward the environment pays for it (a test
-checks this to 1e-9).  Sensors never change the dynamics, so the copy steps exactly like the
-task.  A task whose own reward is a poor planning objective (humanoid falls at once with
-it, see ../shared/notes/platform.md) may plan with a shaped reward instead, named in
-:data:`PLANNING_REWARDS`; the expert is still *judged* on the task's reward.
+checks this to 1e-9).  Sensors never change the dynamics, so the copy steps like the task
+(to about 1e-12: ``mujoco.rollout`` starts the constraint solver without the environment's
+warm start).  The copy cannot know state outside MuJoCo's full-physics state (mocap bodies,
+applied forces) nor changes a task makes to its model at reset; no port here has either,
+and a task whose reward reads a field the rollouts do not give (``geom_xpos`` of the
+reachers) is refused.  A task whose own reward is a poor planning objective (humanoid falls
+at once with it, see ../shared/notes/platform.md) may plan with a shaped reward instead,
+named in :data:`PLANNING_REWARDS`; the expert is still *judged* on the task's reward.
 
 Determinism: the noise of each episode comes from its own generator, seeded by the planner's
 ``seed`` and the episode seed (given to :meth:`reset`), and rollouts of different candidates
@@ -121,6 +126,16 @@ class SensedModel:
                 not np.array_equal(m.body_mass, base.body_mass):
             raise RuntimeError(f"{task}: the planner's model copy does not match the task's")
         self.nq, self.nv = m.nq, m.nv
+        # The task's own sensors of the acceleration stage (touch, force, ...): after a
+        # control step the environment holds them from its last physics step's mj_step2.
+        self.acc_sensors = np.zeros(self.n_own, bool)
+        for i in range(base.nsensor):
+            if base.sensor_needstage[i] == mujoco.mjtStage.mjSTAGE_ACC:
+                adr = base.sensor_adr[i]
+                self.acc_sensors[adr:adr + base.sensor_dim[i]] = True
+
+    # The MjData fields :meth:`fields` rebuilds: all that a task's reward may read.
+    FIELDS = ("qpos", "qvel", "xpos", "xipos", "xmat", "sensordata", "ctrl")
 
     def fields(self, states: np.ndarray, sensordata: np.ndarray, ctrl: np.ndarray) -> dict:
         """MjData fields of M simulator states: full-physics states (M, nstate), their sensor
@@ -153,10 +168,10 @@ PLANNING_REWARDS: dict[str | None, Callable | None] = {None: None}
 
 
 def _humanoid_shaped(task, b: Batch) -> np.ndarray:
-    """Humanoid walk with a wider head-height tolerance and a balance term: the task pays
-    nothing once the head drops below 1.05 m, so a planner that stumbles sees no gradient
-    back up; this pays for height down to 0.5 m and for keeping the centre of mass over
-    the feet (the suite's own ``stand`` shaping, generalised)."""
+    """Humanoid walk plus a wider head-height term: the task's standing term falls to a
+    tenth with the head at 1.05 m and to 1e-4 at 0.7 m, so a planner that stumbles sees
+    almost no gradient back up; this adds up to 0.5 for head height (still a tenth of that
+    at 0.5 m) times the task's own upright term (torso z axis vertical)."""
     from dm_control.utils import rewards
     head = b.xpos[:, b.ids["head"], 2]
     standing = rewards.tolerance(head, bounds=(1.4, float("inf")), margin=0.9,
@@ -196,6 +211,11 @@ class PredictiveSampling:
         self.spec = _tasks.spec(task)
         self.sensed = SensedModel(task)
         self.env_task = _tasks.load(task).task    # for its reward functions and named ids
+        missing = [f for f in self.env_task.fields if f not in SensedModel.FIELDS]
+        if missing:
+            raise ValueError(f"a planner cannot score {task!r}: its reward reads "
+                             f"{', '.join(missing)}, which the rollouts do not give "
+                             f"(they give {', '.join(SensedModel.FIELDS)})")
         self.ids = self.env_task.resolve(self.sensed.model)
         self.H = max(2, int(round(config.horizon / self.spec.control_timestep)))
         self.knot_t = np.linspace(0, self.H - 1, config.n_knots)
@@ -259,20 +279,34 @@ class PredictiveSampling:
         w = ((t - t0) / (t1 - t0))[:, None]
         return knots[:, idx, :] * (1 - w) + knots[:, idx + 1, :] * w
 
-    def predict(self, states: np.ndarray, controls: np.ndarray) -> np.ndarray:
-        """Per-step rewards (R, H) of open-loop action sequences (R, H, nu) from states (R, .)
-        by the planning objective."""
+    def predicted_fields(self, states: np.ndarray, controls: np.ndarray) -> dict:
+        """The MjData fields the environment would hold after each control step of open-loop
+        action sequences (R, H, nu) from states (R, nstate), flattened to R * H rows."""
         R, H, nu = controls.shape
         n = self.spec.n_sub_steps
-        # One physics step more than the horizon: the task reads its reward from positions
-        # and sensors after the step, which rollout records with the following step.
+        # mujoco.rollout records for physics step k the state after it (state[k]) and the
+        # sensors computed during it, of the state *before* it (sensordata[k]).  After control
+        # step j (physics steps up to ends[j] - 1, 0-based) the environment holds the state
+        # after them with positions and sensors brought up to date by mj_step1: state[ends - 1]
+        # and sensordata[ends], hence one physics step more than the horizon.  Acceleration-
+        # stage sensors it holds from its last physics step's mj_step2: sensordata[ends - 1].
         per_physics = np.repeat(controls, n, axis=1)
         per_physics = np.concatenate([per_physics, per_physics[:, -1:]], axis=1)
         st, sd = mj_rollout.rollout(self.sensed.model, self.datas, states, per_physics)
-        ends = np.arange(1, H + 1) * n                    # physics step after control step j
-        fields = self.sensed.fields(st[:, ends - 1].reshape(R * H, -1),
-                                    sd[:, ends].reshape(R * H, -1),
-                                    controls.reshape(R * H, nu))
+        ends = np.arange(1, H + 1) * n
+        sensors = sd[:, ends]
+        acc = self.sensed.acc_sensors
+        if acc.any():
+            own = sensors[..., :self.sensed.n_own]          # a view: assigns into sensors
+            own[..., acc] = sd[:, ends - 1, :self.sensed.n_own][..., acc]
+        return self.sensed.fields(st[:, ends - 1].reshape(R * H, -1),
+                                  sensors.reshape(R * H, -1), controls.reshape(R * H, nu))
+
+    def predict(self, states: np.ndarray, controls: np.ndarray) -> np.ndarray:
+        """Per-step rewards (R, H) of open-loop action sequences (R, H, nu) from states (R, .)
+        by the planning objective."""
+        R, H, _ = controls.shape
+        fields = self.predicted_fields(states, controls)
         return np.asarray(self.score(as_batch(fields, self.ids))).reshape(R, H)
 
     def plan(self, states: np.ndarray) -> np.ndarray:
