@@ -75,3 +75,17 @@ def test_load_expert_covers_every_task_or_says_how_to_make_it():
             assert "dc-lesson expert train" in str(e)
         else:
             assert callable(policy) and info["kind"] in ("scripted", "trained", "planner")
+
+
+def test_stored_learning_curves_match_their_training_records():
+    # The book plots these; a unit's curve must end at the steps its record says it trained.
+    import json
+    for unit in ("halfcheetah", "hopper", "walker", "ant"):
+        curve = trained.learning_curve(unit)
+        meta = json.loads(trained.unit_paths(unit)["meta"].read_text())
+        assert curve["task"] == trained.RECIPES[unit].task
+        assert np.all(np.diff(curve["steps"]) > 0)
+        assert curve["steps"][-1] <= meta["steps"] == meta["config"]["total_steps"] // 4096 * 4096
+        assert np.isfinite(curve["episode_return"]).all()
+    with pytest.raises(trained.ExpertMissing, match="train_unit"):
+        trained.learning_curve("humanoid")

@@ -129,6 +129,25 @@ def train_unit(unit: str, total_steps: int | None = None, command: str = "",
     return meta
 
 
+def learning_curve(unit: str, directory=None) -> dict:
+    """The stored learning curve of a trained unit, read from ``UNIT.json``: ``steps`` and
+    ``episode_return`` (mean return of the training episodes that ended in each update, with
+    the stochastic policy), the task and the training wall time."""
+    path = unit_paths(unit, directory)["meta"]
+    if not path.exists():
+        raise ExpertMissing(f"no training record {path}; train the unit with "
+                            f"dc_lesson.experts.trained.train_unit({unit!r})")
+    meta = json.loads(path.read_text())
+    curve = meta.get("learning_curve")
+    if not isinstance(curve, list) or not curve:
+        raise ValueError(f"{path} has no learning curve; retrain the unit with "
+                         f"dc_lesson.experts.trained.train_unit({unit!r})")
+    return {"unit": unit, "task": meta["task"],
+            "steps": np.array([row["steps"] for row in curve]),
+            "episode_return": np.array([row["episode_return"] for row in curve]),
+            "training_seconds": meta["training_seconds"]}
+
+
 class DeterministicPolicy:
     """A trained network acting with its mean action, as a numpy batch policy."""
 
