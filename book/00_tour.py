@@ -195,8 +195,10 @@ print("replay identical:", np.array_equal(obs, traj.observations)
 # Imitation needs an expert. The paper trained its experts with TRPO on Gym's rewards; ours
 # come from whatever method reaches a competent policy on a laptop CPU, and the
 # demonstrations' manifest, `data/demos/manifest.json`, records for each task how its expert
-# was made, the return of 50 fresh expert episodes and 50 random ones (the two ends of the
-# *scaled return*: expert 1, random 0), how the 25 stored demonstrations spread over the
+# was made, the return of 50 expert episodes and 50 random ones (the two ends of the
+# *scaled return*: expert 1, random 0; the expert's 50 are fresh episodes, except for a
+# planner, which costs minutes per episode: its 25 demonstrations and 25 more), how the 25
+# stored demonstrations spread over the
 # task's modes, and the command and revision that made them. `dc-lesson demos --task NAME`
 # regenerates a task's file.
 #
@@ -210,28 +212,30 @@ print("replay identical:", np.array_equal(obs, traj.observations)
 #   state), and a learner must commit to a mode by itself. Had the expert gone to the target
 #   nearest its start, the mode would be a function of the initial state, which a
 #   single-Gaussian policy can represent, and there would be little to collapse.
-# * `halfcheetah`, `hopper`, `walker`, `ant`: policies trained with the library's PPO
+# * `halfcheetah`, `hopper`: policies trained with the library's PPO
 #   (`dc-lesson expert train --task NAME`, a few million steps each, checkpointed so a run
 #   survives interruption). `halfcheetah2` joins a forward and a backward runner by the same
 #   per-episode coin flip as the reachers.
-# * `humanoid`: no policy at all, but a **planner on the true simulator**. Predictive sampling
-#   (the simplest planner of MuJoCo MPC) keeps a plan of actions for the next half second and,
-#   at every control step, tries 128 noisy variants of it from the simulator's exact current
-#   state and keeps the best:
+# * `walker`, `ant` and `humanoid`: no policy at all, but a **planner on the true
+#   simulator**. Predictive sampling (the simplest planner of MuJoCo MPC) keeps a plan of
+#   actions for the next half second (a whole second for the ant) and, at every control
+#   step, tries noisy variants of it (63 for the walker and the ant, 127 for the humanoid)
+#   and the unchanged plan from the simulator's exact current state, and keeps the best:
 #
 #   ```
 #   plan ← zeros(knots, actions)
 #   every control step:
-#       candidates ← [plan + σ·noise for 127 draws] + [plan]       # keep the old plan too
+#       candidates ← [plan + σ·noise for N−1 draws] + [plan]       # keep the old plan too
 #       score(c) ← Σ_{h<H} reward(rollout(state, c)[h])            # mujoco.rollout, in C
 #       plan ← argmax score
-#   act ← plan(now); shift the plan one step
+#       act ← plan(now); shift the plan one step
 #   ```
 #
 #   It scores rollouts with the task's own reward function, computed from extra sensors in a
 #   copy of the model: the reward it predicts for a step is, to $10^{-9}$, the reward the
-#   environment pays (`tests/test_planner.py`). The humanoid's walk reward is flat zero
-#   whenever the head is low, so a planner whose robot starts to fall sees no way back up
+#   environment pays (`tests/test_planner.py`). The walker and the ant plan with their own
+#   reward. The
+#   humanoid's walk reward is almost zero whenever the head is low, so a planner whose robot starts to fall sees no way back up
 #   within its half-second horizon; it therefore plans with that reward plus a smoothly
 #   shaped "stay tall and upright" term (`planner.PLANNING_REWARDS`), and is judged on the
 #   task's own reward like every other expert. A planner needs no training but costs
@@ -305,6 +309,33 @@ plt.show()
 from dc_lesson.experts import floors
 
 pd.DataFrame(floors.report()).set_index("task").round(1).fillna("")
+
+# %% [markdown]
+# Why the planner took over three locomotion tasks: the learning curves of our PPO runs,
+# read from their training records (`data/experts/UNIT.json`; each point is the mean return
+# of the training episodes that ended in one update, with the policy's sampling noise, so a
+# little below what its mean action scores). The dashed line is the task's floor. The
+# cheetahs clear it within a million steps. The walker's and the ant's runs flatten out far
+# below theirs after 5M steps (hours of this CPU), so their experts became planners; the runs
+# are kept for this comparison. The hopper, still a PPO expert, climbs to about 250 and
+# stays: a quarter of the reward for every step standing is a safe income, and PPO never
+# found the hop that pays the rest (the planner fared worse: it fell within 50 steps).
+
+# %%
+from dc_lesson.experts import trained
+
+units = ["halfcheetah", "halfcheetah-backward", "hopper", "walker", "ant"]
+fig, axes = plt.subplots(1, len(units), figsize=(2.6 * len(units), 2.6), sharey=True)
+for ax, unit in zip(axes, units):
+    curve = trained.learning_curve(unit)
+    ax.plot(curve["steps"] / 1e6, curve["episode_return"], lw=1)
+    ax.axhline(floors.FLOORS[curve["task"]], ls="--", c="grey", lw=1)
+    ax.set_title(f"{unit}\n({curve['training_seconds'] / 3600:.1f} h of training)", fontsize=9)
+    ax.set_xlabel("million steps")
+axes[0].set_ylabel("training episode return")
+axes[0].set_ylim(0, 1000)
+plt.tight_layout()
+plt.show()
 
 # %% [markdown]
 # Every expert, seen through its first demonstration: frames replayed from the stored

@@ -89,3 +89,24 @@ def test_stored_learning_curves_match_their_training_records():
         assert np.isfinite(curve["episode_return"]).all()
     with pytest.raises(trained.ExpertMissing, match="train_unit"):
         trained.learning_curve("humanoid")
+
+
+def test_chapter_00s_reading_of_the_learning_curves_holds():
+    # Chapter 00 says: the cheetahs clear their floors within a million steps; the walker's
+    # and the ant's runs stay below theirs; the hopper levels off near 250 (standing pays a
+    # quarter per step, 250 per episode) without reaching the return hopping would pay.
+    from dc_lesson.experts import floors
+
+    def curve(unit):
+        c = trained.learning_curve(unit)
+        return c["steps"], c["episode_return"], floors.FLOORS[c["task"]]
+
+    for unit in ("halfcheetah", "halfcheetah-backward"):
+        s, r, floor = curve(unit)
+        assert (r[s <= 1_000_000] >= floor).any()
+    for unit in ("walker", "ant"):
+        s, r, floor = curve(unit)
+        assert s[-1] >= 4_900_000 and r.max() < floor
+    s, r, _ = curve("hopper")
+    late = r[s > s[-1] - 1_000_000]
+    assert 200 < late.mean() < 300 and late.max() < 300
