@@ -77,7 +77,12 @@ def cmd_tour(args) -> int:
 def cmd_demos(args) -> int:
     from dc_lesson import demos
     for name in args.task:
-        entry = demos.make_demos(name, command=_command_line())
+        entry = demos.make_demos(name, command=_command_line(), stage=args.stage,
+                                 threads=args.threads)
+        if entry is None:
+            print(f"{name}: stage {args.stage!r} complete in data/demos/partial/; finish with: "
+                  f"dc-lesson demos --task {name}")
+            continue
         e, r = entry["expert_return"], entry["random_return"]
         shares = ", ".join(f"{k} {v:.2f}" for k, v in entry["demo_mode_shares"].items())
         print(f"{name}: {entry['n_trajectories']} demonstrations; expert {e['mean']:.1f} ± "
@@ -187,6 +192,11 @@ def build_parser() -> argparse.ArgumentParser:
     s.set_defaults(func=cmd_tour)
     s = sub.add_parser("demos", help="roll out a task's expert into data/demos/")
     s.add_argument("--task", nargs="+", required=True)
+    s.add_argument("--stage", choices=["demos", "eval"], default=None,
+                   help="planner experts: collect only this stage's episodes (run the two "
+                        "stages as two processes side by side, then once without --stage)")
+    s.add_argument("--threads", type=int, default=None,
+                   help="planner experts: mujoco.rollout threads (results do not depend on it)")
     s.set_defaults(func=cmd_demos)
     s = sub.add_parser("expert", help="train or evaluate a task's expert")
     s.add_argument("what", choices=["train", "eval"])

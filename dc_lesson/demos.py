@@ -124,26 +124,54 @@ def collect_resumable(task: str, policy, n: int, seed: int, partial, fingerprint
     return done
 
 
+STAGES = ("demos", "eval")
+
+
 def make_demos(task: str, command: str = "", directory=None, n_demos: int = N_DEMOS,
-               n_eval: int = N_EVAL, progress: bool = True) -> dict:
-    """Generates, stores and registers the demonstrations of ``task``; returns its entry."""
+               n_eval: int = N_EVAL, progress: bool = True, stage: str | None = None,
+               threads: int | None = None) -> dict | None:
+    """Generates, stores and registers the demonstrations of ``task``; returns its entry.
+
+    For a planner expert, ``stage="demos"`` or ``"eval"`` collects only that stage's
+    episodes into ``data/demos/partial/`` and returns None: the two stages can then run as
+    two processes side by side (two one-thread processes finish sooner than one two-thread
+    process: part of each control step is single-threaded Python), and a final call without
+    ``stage`` finds both complete and writes the file.  Never run two processes on the same
+    stage: each rewrites that stage's partial file.  ``threads`` sets the planner's
+    ``mujoco.rollout`` threads (the episodes do not depend on it).  ``wall_seconds`` in the
+    entry is the time of this call only; episodes resumed from partial files were timed by
+    the calls that made them."""
+    import dataclasses
     import hashlib
     import pathlib
     from dc_lesson.experts import load_expert
     _tasks.check_name(task)
+    if stage is not None and stage not in STAGES:
+        raise ValueError(f"unknown stage {stage!r}; the stages are: {', '.join(STAGES)}")
     directory = data.DEMOS_DIR if directory is None else directory
     directory = pathlib.Path(directory)
     expert, info = load_expert(task)
     t0 = time.time()
     planner = info.get("kind") == "planner"
+    if stage is not None and not planner:
+        raise ValueError(f"{task!r} has no planner expert: its demonstrations take seconds, "
+                         f"run `dc-lesson demos --task {task}` without --stage")
+    if planner and threads is not None:
+        expert = type(expert)(task, dataclasses.replace(expert.config, threads=int(threads)))
     if planner:
         fingerprint = hashlib.sha256(json.dumps([info, _tasks.spec(task).horizon],
                                                 sort_keys=True).encode()).hexdigest()
         part = directory / "partial"
-        demos = collect_resumable(task, expert, n_demos, DEMO_SEED, part / f"{task}-demos.npz",
-                                  fingerprint, progress=progress)
-        more = collect_resumable(task, expert, max(0, n_eval - n_demos), EXPERT_EVAL_SEED,
-                                 part / f"{task}-eval.npz", fingerprint, progress=progress)
+        if stage in (None, "demos"):
+            demos = collect_resumable(task, expert, n_demos, DEMO_SEED,
+                                      part / f"{task}-demos.npz", fingerprint,
+                                      progress=progress)
+        if stage in (None, "eval"):
+            more = collect_resumable(task, expert, max(0, n_eval - n_demos), EXPERT_EVAL_SEED,
+                                     part / f"{task}-eval.npz", fingerprint,
+                                     progress=progress)
+        if stage is not None:
+            return None
         expert_eval = demos + more
         eval_note = (f"the {n_demos} demonstrations and {len(more)} further episodes "
                      f"(seed {EXPERT_EVAL_SEED}): a planner costs minutes per episode")

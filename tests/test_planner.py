@@ -231,3 +231,30 @@ def test_a_partial_file_is_reused_only_with_its_own_stamp(tmp_path, monkeypatch)
     assert rerun() == [0, 1]
     stamp.write_text("not json")
     assert rerun() == [0, 1]
+
+
+def test_the_two_stages_run_apart_and_give_the_file_of_one_run(tmp_path, monkeypatch):
+    # A cheap planner in place of the walker's, so whole 1000-step episodes take seconds.
+    cheap = PlannerConfig(n_samples=2, horizon=0.05, n_knots=2, noise=0.3)
+    monkeypatch.setitem(planner.PLANNERS, "walker", cheap)
+    kw = dict(n_demos=2, n_eval=3, progress=False, threads=1)
+    straight = demos.make_demos("walker", directory=tmp_path / "straight", **kw)
+    staged_dir = tmp_path / "staged"
+    assert demos.make_demos("walker", directory=staged_dir, stage="eval", **kw) is None
+    assert demos.make_demos("walker", directory=staged_dir, stage="demos", **kw) is None
+    calls = []
+    original = rollout.collect
+
+    def counting(task, policy, *a, **k):
+        calls.append(type(policy).__name__)
+        return original(task, policy, *a, **k)
+    monkeypatch.setattr(rollout, "collect", counting)
+    staged = demos.make_demos("walker", directory=staged_dir, **kw)
+    assert calls == ["RandomPolicy"]          # the planner's episodes were all on disk
+    assert staged["sha256"] == straight["sha256"]
+    assert staged["expert_return"] == straight["expert_return"]
+    assert not list((staged_dir / "partial").glob("walker-*"))
+    with pytest.raises(ValueError, match="stages are: demos, eval"):
+        demos.make_demos("walker", directory=staged_dir, stage="random", **kw)
+    with pytest.raises(ValueError, match="without --stage"):
+        demos.make_demos("cartpole", directory=staged_dir, stage="demos", **kw)
