@@ -330,6 +330,10 @@ for ax, unit in zip(axes, units):
     curve = trained.learning_curve(unit)
     ax.plot(curve["steps"] / 1e6, curve["episode_return"], lw=1)
     ax.axhline(floors.FLOORS[curve["task"]], ls="--", c="grey", lw=1)
+    if unit == "hopper":   # standing still earns a quarter of the reward at every step
+        still = 0.25 * tasks.spec("hopper").horizon
+        ax.axhline(still, ls=":", c="C3", lw=1)
+        ax.text(0.05, still + 30, "standing still", fontsize=8, color="C3")
     ax.set_title(f"{unit}\n({curve['training_seconds'] / 3600:.1f} h of training)", fontsize=9)
     ax.set_xlabel("million steps")
 axes[0].set_ylabel("training episode return")
