@@ -78,7 +78,7 @@ def cmd_demos(args) -> int:
     from dc_lesson import demos
     for name in args.task:
         entry = demos.make_demos(name, command=_command_line(), stage=args.stage,
-                                 threads=args.threads)
+                                 threads=args.threads, first=args.first)
         if entry is None:
             print(f"{name}: stage {args.stage!r} complete in data/demos/partial/; finish with: "
                   f"dc-lesson demos --task {name}")
@@ -195,6 +195,9 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--stage", choices=["demos", "eval"], default=None,
                    help="planner experts: collect only this stage's episodes (run the two "
                         "stages as two processes side by side, then once without --stage)")
+    s.add_argument("--first", type=int, default=None,
+                   help="with --stage eval: collect that stage's episodes from this one on, "
+                        "in a file of their own (a second eval process takes the end)")
     s.add_argument("--threads", type=int, default=None,
                    help="planner experts: mujoco.rollout threads (results do not depend on it)")
     s.set_defaults(func=cmd_demos)

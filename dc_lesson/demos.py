@@ -65,15 +65,16 @@ def _locked(directory):
             fcntl.flock(lock, fcntl.LOCK_UN)
 
 
-def _resumable_episodes(task: str, partial, stamp, fingerprint: str, seed: int) -> list:
+def _resumable_episodes(task: str, partial, stamp, fingerprint: str, seed: int,
+                        first: int = 0) -> list:
     """The finished episodes kept in ``partial``, or [] when they cannot be trusted to be
-    episodes 0, 1, ... of ``seed`` by the expert with ``fingerprint``."""
+    episodes first, first + 1, ... of ``seed`` by the expert with ``fingerprint``."""
     if not (partial.exists() and stamp.exists()):
         return []
     try:
         info = json.loads(stamp.read_text())
         if not isinstance(info, dict) or info.get("fingerprint") != fingerprint or \
-                info.get("seed") != seed:
+                info.get("seed") != seed or info.get("first", 0) != first:
             return []
         # The stamp names its file by sha256 (older stamps, written just before their file,
         # only by a count the file cannot exceed): a file left by another expert or seed
@@ -86,24 +87,25 @@ def _resumable_episodes(task: str, partial, stamp, fingerprint: str, seed: int) 
             return []
     except (ValueError, data.DemoError):
         return []              # a damaged stamp or partial file: start this set again
-    expected = rollout.episode_seeds(seed, len(done))
+    expected = rollout.episode_seeds(seed, first + len(done))[first:]
     if [t.seed for t in done] != [int(s) for s in expected]:
         return []
     return done
 
 
 def collect_resumable(task: str, policy, n: int, seed: int, partial, fingerprint: str,
-                      chunk: int = 1, progress: bool = True) -> list:
+                      chunk: int = 1, progress: bool = True, first: int = 0) -> list:
     """``rollout.collect(task, policy, n, seed)``, ``chunk`` episodes at a time, keeping the
     finished ones in ``partial`` (an .npz, written atomically, then named with its sha256 in
     a stamp beside it, ``partial`` with suffix .json) so a rerun continues there.
 
     ``fingerprint`` must change whenever the policy's actions would: the stored episodes of
-    another fingerprint (or seed) are not reused."""
+    another fingerprint (or seed) are not reused.  With ``first = k`` the episodes are
+    k, k + 1, ... of ``seed`` (a second process can take the end of a set)."""
     import pathlib
     partial = pathlib.Path(partial)
     stamp = partial.with_suffix(".json")
-    done = _resumable_episodes(task, partial, stamp, fingerprint, seed)[:n]
+    done = _resumable_episodes(task, partial, stamp, fingerprint, seed, first)[:n]
     bar = None
     if progress:
         from tqdm.auto import tqdm
@@ -111,12 +113,13 @@ def collect_resumable(task: str, policy, n: int, seed: int, partial, fingerprint
                    unit="episode")
     while len(done) < n:
         k = min(chunk, n - len(done))
-        done += rollout.collect(task, policy, k, seed=seed, first=len(done), batch=k,
-                                progress=progress)
+        done += rollout.collect(task, policy, k, seed=seed, first=first + len(done),
+                                batch=k, progress=progress)
         partial.parent.mkdir(parents=True, exist_ok=True)
         digest = data.save_demos(done, partial)
         atomic_write_text(stamp, json.dumps({"fingerprint": fingerprint, "seed": seed,
-                                             "episodes": len(done), "sha256": digest}) + "\n")
+                                             "first": first, "episodes": len(done),
+                                             "sha256": digest}) + "\n")
         if bar is not None:
             bar.update(k)
     if bar is not None:
@@ -129,7 +132,7 @@ STAGES = ("demos", "eval")
 
 def make_demos(task: str, command: str = "", directory=None, n_demos: int = N_DEMOS,
                n_eval: int = N_EVAL, progress: bool = True, stage: str | None = None,
-               threads: int | None = None) -> dict | None:
+               threads: int | None = None, first: int | None = None) -> dict | None:
     """Generates, stores and registers the demonstrations of ``task``; returns its entry.
 
     For a planner expert, ``stage="demos"`` or ``"eval"`` collects only that stage's
@@ -138,7 +141,10 @@ def make_demos(task: str, command: str = "", directory=None, n_demos: int = N_DE
     process: part of each control step is single-threaded Python), and a final call without
     ``stage`` finds both complete and writes the file.  Never run two processes on the same
     stage: each rewrites that stage's partial file.  ``threads`` sets the planner's
-    ``mujoco.rollout`` threads (the episodes do not depend on it).  ``wall_seconds`` in the
+    ``mujoco.rollout`` threads (the episodes do not depend on it).  ``stage="eval"`` with
+    ``first=k`` collects the evaluation episodes from k on into a file of their own, so a
+    third process can take the end of that stage while another works from its start; the
+    final call uses the sequential file up to k and that file from k on.  ``wall_seconds`` in the
     entry is the time of this call only; episodes resumed from partial files were timed by
     the calls that made them."""
     import dataclasses
@@ -162,14 +168,32 @@ def make_demos(task: str, command: str = "", directory=None, n_demos: int = N_DE
         fingerprint = hashlib.sha256(json.dumps([info, _tasks.spec(task).horizon],
                                                 sort_keys=True).encode()).hexdigest()
         part = directory / "partial"
+        if first is not None and (stage != "eval" or not 0 < first < n_eval - n_demos):
+            raise ValueError(f"first applies to stage 'eval' and lies in "
+                             f"1..{n_eval - n_demos - 1}, got stage {stage!r}, first {first!r}")
         if stage in (None, "demos"):
             demos = collect_resumable(task, expert, n_demos, DEMO_SEED,
                                       part / f"{task}-demos.npz", fingerprint,
                                       progress=progress)
+        n_more = max(0, n_eval - n_demos)
+        if first is not None:
+            collect_resumable(task, expert, n_more - first, EXPERT_EVAL_SEED,
+                              part / f"{task}-eval-from{first}.npz", fingerprint,
+                              progress=progress, first=first)
+            return None
         if stage in (None, "eval"):
-            more = collect_resumable(task, expert, max(0, n_eval - n_demos), EXPERT_EVAL_SEED,
+            # A finished tail (episodes k..end, from a `first=k` process) shortens the
+            # sequential part to episodes 0..k-1.
+            split, tail = n_more, []
+            for f in sorted(part.glob(f"{task}-eval-from*.npz")):
+                k = int(f.stem.rsplit("from", 1)[1])
+                eps = _resumable_episodes(task, f, f.with_suffix(".json"), fingerprint,
+                                          EXPERT_EVAL_SEED, k)
+                if 0 < k < split and len(eps) == n_more - k:
+                    split, tail = k, eps
+            more = collect_resumable(task, expert, split, EXPERT_EVAL_SEED,
                                      part / f"{task}-eval.npz", fingerprint,
-                                     progress=progress)
+                                     progress=progress) + tail
         if stage is not None:
             return None
         expert_eval = demos + more

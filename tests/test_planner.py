@@ -254,6 +254,21 @@ def test_the_two_stages_run_apart_and_give_the_file_of_one_run(tmp_path, monkeyp
     assert staged["sha256"] == straight["sha256"]
     assert staged["expert_return"] == straight["expert_return"]
     assert not list((staged_dir / "partial").glob("walker-*"))
+    # The evaluation stage split between two processes, one from its start and one from
+    # episode 1 on: the same file again, and the planner runs no episode twice.
+    split_dir = tmp_path / "split"
+    kw3 = {**kw, "n_eval": 4}
+    straight3 = demos.make_demos("walker", directory=tmp_path / "straight3", **kw3)
+    calls.clear()
+    assert demos.make_demos("walker", directory=split_dir, stage="eval", first=1, **kw3) is None
+    assert demos.make_demos("walker", directory=split_dir, stage="eval", **kw3) is None
+    assert demos.make_demos("walker", directory=split_dir, stage="demos", **kw3) is None
+    assert calls.count("PredictiveSampling") == 2 + 2   # 2 demos, 2 evaluation episodes
+    split = demos.make_demos("walker", directory=split_dir, **kw3)
+    assert split["sha256"] == straight3["sha256"]
+    assert split["expert_return"] == straight3["expert_return"]
+    with pytest.raises(ValueError, match="first applies to stage 'eval'"):
+        demos.make_demos("walker", directory=split_dir, stage="demos", first=1, **kw3)
     with pytest.raises(ValueError, match="stages are: demos, eval"):
         demos.make_demos("walker", directory=staged_dir, stage="random", **kw)
     with pytest.raises(ValueError, match="without --stage"):
