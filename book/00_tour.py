@@ -212,15 +212,14 @@ print("replay identical:", np.array_equal(obs, traj.observations)
 #   state), and a learner must commit to a mode by itself. Had the expert gone to the target
 #   nearest its start, the mode would be a function of the initial state, which a
 #   single-Gaussian policy can represent, and there would be little to collapse.
-# * `halfcheetah`, `hopper`, `ant`: policies trained with the library's PPO
+# * `halfcheetah`, `hopper`: policies trained with the library's PPO
 #   (`dc-lesson expert train --task NAME`, a few million steps each, checkpointed so a run
 #   survives interruption). `halfcheetah2` joins a forward and a backward runner by the same
 #   per-episode coin flip as the reachers.
-# * `walker` and `humanoid`: no policy at all, but a **planner on the true simulator**
-#   (the ant's planner, over a whole second, is still making its demonstrations; until they
-#   land its expert is the PPO policy). Predictive sampling (the simplest planner of MuJoCo
-#   MPC) keeps a plan of actions for the next half second and, at every control step, tries
-#   noisy variants of it (63 for the walker, 127 for the humanoid)
+# * `walker`, `ant` and `humanoid`: no policy at all, but a **planner on the true
+#   simulator**. Predictive sampling (the simplest planner of MuJoCo MPC) keeps a plan of
+#   actions for the next half second (a whole second for the ant) and, at every control
+#   step, tries noisy variants of it (63 for the walker and the ant, 127 for the humanoid)
 #   and the unchanged plan from the simulator's exact current state, and keeps the best:
 #
 #   ```
@@ -234,7 +233,8 @@ print("replay identical:", np.array_equal(obs, traj.observations)
 #
 #   It scores rollouts with the task's own reward function, computed from extra sensors in a
 #   copy of the model: the reward it predicts for a step is, to $10^{-9}$, the reward the
-#   environment pays (`tests/test_planner.py`). The walker plans with its own reward. The
+#   environment pays (`tests/test_planner.py`). The walker and the ant plan with their own
+#   reward. The
 #   humanoid's walk reward is almost zero whenever the head is low, so a planner whose robot starts to fall sees no way back up
 #   within its half-second horizon; it therefore plans with that reward plus a smoothly
 #   shaped "stay tall and upright" term (`planner.PLANNING_REWARDS`), and is judged on the
@@ -316,8 +316,8 @@ pd.DataFrame(floors.report()).set_index("task").round(1).fillna("")
 # of the training episodes that ended in one update, with the policy's sampling noise, so a
 # little below what its mean action scores). The dashed line is the task's floor. The
 # cheetahs clear it within a million steps. The walker's and the ant's runs flatten out far
-# below theirs after 5M steps (hours of this CPU), so the walker's expert became a planner
-# (its run is kept for this comparison) and the ant's is becoming one. The hopper, still a PPO expert, climbs to about 250 and
+# below theirs after 5M steps (hours of this CPU), so their experts became planners; the runs
+# are kept for this comparison. The hopper, still a PPO expert, climbs to about 250 and
 # stays: a quarter of the reward for every step standing is a safe income, and PPO never
 # found the hop that pays the rest (the planner fared worse: it fell within 50 steps).
 

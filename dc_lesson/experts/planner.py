@@ -363,13 +363,6 @@ PLANNERS: dict[str, PlannerConfig] = {
     "humanoid": PlannerConfig(n_samples=128, horizon=0.5, n_knots=4, noise=0.3,
                               replan_every=1, planning_reward="humanoid-shaped"),
     "walker": PlannerConfig(n_samples=64, horizon=0.5, n_knots=4, noise=0.3, replan_every=1),
-}
-
-# Planners whose demonstrations are still being collected: until they finish, the task keeps
-# its earlier expert (the one its shipped file holds).  Their finished episodes wait in
-# data/demos/partial/; to continue, move the entry into PLANNERS and run
-# ``dc-lesson demos --task NAME`` (or its two ``--stage`` processes).
-PENDING_PLANNERS: dict[str, PlannerConfig] = {
     "ant": PlannerConfig(n_samples=64, horizon=1.0, n_knots=4, noise=0.3, replan_every=1),
 }
 
