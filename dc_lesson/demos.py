@@ -135,18 +135,16 @@ def make_demos(task: str, command: str = "", directory=None, n_demos: int = N_DE
                threads: int | None = None, first: int | None = None) -> dict | None:
     """Generates, stores and registers the demonstrations of ``task``; returns its entry.
 
-    For a planner expert, ``stage="demos"`` or ``"eval"`` collects only that stage's
-    episodes into ``data/demos/partial/`` and returns None: the two stages can then run as
-    two processes side by side (two one-thread processes finish sooner than one two-thread
-    process: part of each control step is single-threaded Python), and a final call without
-    ``stage`` finds both complete and writes the file.  Never run two processes on the same
-    stage: each rewrites that stage's partial file.  ``threads`` sets the planner's
-    ``mujoco.rollout`` threads (the episodes do not depend on it).  ``stage="eval"`` with
-    ``first=k`` collects the evaluation episodes from k on into a file of their own, so a
-    third process can take the end of that stage while another works from its start; the
-    final call uses the sequential file up to k and that file from k on.  ``wall_seconds`` in the
-    entry is the time of this call only; episodes resumed from partial files were timed by
-    the calls that made them."""
+    For a planner expert the episodes can be collected by processes side by side, each
+    returning None: ``stage="demos"``, ``stage="eval"``, and ``stage="eval", first=k`` (the
+    evaluation episodes from k on, in a file of their own).  A last call without ``stage``
+    joins what they stored (the sequential evaluation file up to k, the other from k on)
+    into the file one run would give.  Never run two processes on the same stage and
+    ``first``: each rewrites its partial file.  Measured on the ant, two one-thread processes
+    made 8.2 control steps/s against 7.0 for one two-thread process.  ``threads`` sets the
+    planner's ``mujoco.rollout`` threads (the episodes do not depend on it).
+    ``wall_seconds`` in the entry is the time of this call only; episodes resumed from
+    partial files were timed by the calls that made them."""
     import dataclasses
     import hashlib
     import pathlib
@@ -168,14 +166,14 @@ def make_demos(task: str, command: str = "", directory=None, n_demos: int = N_DE
         fingerprint = hashlib.sha256(json.dumps([info, _tasks.spec(task).horizon],
                                                 sort_keys=True).encode()).hexdigest()
         part = directory / "partial"
-        if first is not None and (stage != "eval" or not 0 < first < n_eval - n_demos):
-            raise ValueError(f"first applies to stage 'eval' and lies in "
-                             f"1..{n_eval - n_demos - 1}, got stage {stage!r}, first {first!r}")
+        n_more = max(0, n_eval - n_demos)
+        if first is not None and (stage != "eval" or not 0 < first < n_more):
+            raise ValueError(f"first applies to stage 'eval' and lies in 1..{n_more - 1}, "
+                             f"got stage {stage!r}, first {first!r}")
         if stage in (None, "demos"):
             demos = collect_resumable(task, expert, n_demos, DEMO_SEED,
                                       part / f"{task}-demos.npz", fingerprint,
                                       progress=progress)
-        n_more = max(0, n_eval - n_demos)
         if first is not None:
             collect_resumable(task, expert, n_more - first, EXPERT_EVAL_SEED,
                               part / f"{task}-eval-from{first}.npz", fingerprint,

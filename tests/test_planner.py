@@ -170,18 +170,24 @@ def test_planner_tasks_load_as_planners_and_write_their_settings(tmp_path):
         planner.write_settings("cartpole", directory=tmp_path)
 
 
+def _record_collects(monkeypatch, key=lambda policy, kw: kw.get("first")):
+    """Wraps rollout.collect to record key(policy, kwargs) of every call; returns the record
+    and the original function."""
+    calls, original = [], rollout.collect
+
+    def recording(task, policy, *a, **kw):
+        calls.append(key(policy, kw))
+        return original(task, policy, *a, **kw)
+    monkeypatch.setattr(rollout, "collect", recording)
+    return calls, original
+
+
 def test_an_interrupted_collection_resumes_to_the_same_episodes(tmp_path, monkeypatch):
     policy = rollout.RandomPolicy("cartpole", seed=4)
     part = tmp_path / "partial" / "cartpole-demos.npz"
     first = demos.collect_resumable("cartpole", policy, 2, 5, part, "fp", progress=False)
     assert json.loads(part.with_suffix(".json").read_text())["episodes"] == 2
-    calls = []
-    original = rollout.collect
-
-    def counting(*a, **k):
-        calls.append(k.get("first"))
-        return original(*a, **k)
-    monkeypatch.setattr(rollout, "collect", counting)
+    calls, original = _record_collects(monkeypatch)
     # "Interrupted" after 2 of 3: the rerun reads those 2 and collects only the third.
     resumed = demos.collect_resumable("cartpole", policy, 3, 5, part, "fp", progress=False)
     assert calls == [2]
@@ -202,13 +208,7 @@ def test_a_partial_file_is_reused_only_with_its_own_stamp(tmp_path, monkeypatch)
     stamp = part.with_suffix(".json")
     demos.collect_resumable("cartpole", policy, 2, 5, part, "fp", progress=False)
     info = json.loads(stamp.read_text())
-    calls = []
-    original = rollout.collect
-
-    def counting(*a, **k):
-        calls.append(k.get("first"))
-        return original(*a, **k)
-    monkeypatch.setattr(rollout, "collect", counting)
+    calls, original = _record_collects(monkeypatch)
 
     def rerun(fingerprint="fp", seed=5):
         calls.clear()
@@ -242,13 +242,7 @@ def test_the_two_stages_run_apart_and_give_the_file_of_one_run(tmp_path, monkeyp
     staged_dir = tmp_path / "staged"
     assert demos.make_demos("walker", directory=staged_dir, stage="eval", **kw) is None
     assert demos.make_demos("walker", directory=staged_dir, stage="demos", **kw) is None
-    calls = []
-    original = rollout.collect
-
-    def counting(task, policy, *a, **k):
-        calls.append(type(policy).__name__)
-        return original(task, policy, *a, **k)
-    monkeypatch.setattr(rollout, "collect", counting)
+    calls, _ = _record_collects(monkeypatch, lambda policy, kw: type(policy).__name__)
     staged = demos.make_demos("walker", directory=staged_dir, **kw)
     assert calls == ["RandomPolicy"]          # the planner's episodes were all on disk
     assert staged["sha256"] == straight["sha256"]
