@@ -47,7 +47,10 @@ import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
 
-from dc_lesson import budget, plots, render, rollout, tasks, tour
+from dc_lesson import budget, tasks
+from dc_lesson.viz import plots, render
+from dc_lesson.data import rollout
+from dc_lesson.experiments import tour
 
 BUDGET = budget.current()
 print(f"budget: {BUDGET.name}")
@@ -59,7 +62,7 @@ if BUDGET.is_smoke:
 #
 # Each port is a dm_control task in the suite's style: an XML model, a `Physics` class with
 # named helpers (`physics.speed()`, `physics.fingertip()`), and a `Task` whose randomness comes
-# only from its own `RandomState`. `tasks.load(name, seed)` builds one; its observations are
+# only from its own `RandomState`. `tasks.make(name, seed)` builds one; its observations are
 # flat `float32` vectors, every episode lasts exactly 1000 control steps, and each step's reward
 # lies in $[0, 1]$, so a return is on a 0 to 1000 scale in every task.
 #
@@ -97,7 +100,7 @@ random_trajs = rollout.collect("reacher4", rollout.RandomPolicy("reacher4", seed
                                n_episodes=max(2, BUDGET.tour_episodes // 2), seed=0)
 tips = np.concatenate([t.mode_features for t in random_trajs])
 
-env = tasks.load("halfcheetah2", seed=0)
+env = tasks.make("halfcheetah2", seed=0)
 env.reset()
 speeds = np.linspace(-14, 14, 57)
 rewards_2 = []
@@ -381,7 +384,7 @@ render.video(clips, fps=15)
 # Everything later in the book is bounded by how fast we can collect experience, so the
 # library steps many copies of a task in lockstep (`tasks.load_vec`): one Python loop sets
 # each copy's controls and advances its physics, then one NumPy pass computes every copy's
-# observation, reward and mode feature. The benchmark `dc-lesson bench rollout` times this
+# observation, reward and mode feature. The benchmark `dc-lesson perf rollout` times this
 # path against raw `mujoco.mj_step` on the same model (the ceiling: physics and nothing else)
 # and against dm_control's own `Environment.step`. Its stored result,
 # `data/results/bench_rollout.json`, records the command, machine and revision; a test checks
@@ -394,7 +397,7 @@ render.video(clips, fps=15)
 #   that Python's bookkeeping dominates and the ratio is lower.
 
 # %%
-from dc_lesson.results import read_result
+from dc_lesson.storage import read_result
 
 bench = read_result("bench_rollout.json")
 speed = pd.DataFrame(bench["rows"]).set_index("task")
@@ -406,7 +409,7 @@ speed[["physics steps per control step", "raw mj_step (ctrl steps/s)", "dm_contr
 # %% [markdown]
 # ## Summary
 #
-# * Ten dm_control tasks stand in for the paper's ten Gym tasks; `tasks.load(name, seed)`
+# * Ten dm_control tasks stand in for the paper's ten Gym tasks; `tasks.make(name, seed)`
 #   builds any of them, with flat observations, rewards in $[0, 1]$ and 1000-step episodes.
 # * Three of them (`reacher2`, `reacher4`, `halfcheetah2`) have several equally rewarded
 #   behaviours that the policy, not the observation, decides between.
@@ -426,7 +429,7 @@ speed[["physics steps per control step", "raw mj_step (ctrl steps/s)", "dm_contr
 
 # %%
 # Exercise 1: a solution by two-link inverse kinematics (elbow-up branch).
-env = tasks.load("reacher4", seed=0)
+env = tasks.make("reacher4", seed=0)
 env.reset()
 green = reacher.target_positions(4)[reacher.target_colours(4).index("green")]
 l1 = l2 = 0.12
@@ -440,7 +443,7 @@ print("fingertip at", env.mode_feature().round(3), "- reward", env.task.get_rewa
 
 # %%
 # Exercise 2: the one-direction task pays nothing for running backwards.
-env1 = tasks.load("halfcheetah", seed=0)
+env1 = tasks.make("halfcheetah", seed=0)
 env1.reset()
 env1.physics.data.qvel[0] = -5.0
 env1.physics.forward()

@@ -5,6 +5,8 @@
 #     text_representation:
 #       extension: .py
 #       format_name: percent
+#       format_version: '1.3'
+#       jupytext_version: 1.19.6
 #   kernelspec:
 #     display_name: Python 3
 #     language: python
@@ -43,10 +45,15 @@ import pandas as pd
 import torch
 from IPython.display import display
 
-from dc_lesson import bc, bench_bc, budget, data, metrics, plots, rollout
-from dc_lesson.policies import GaussianPolicy
+from dc_lesson.algorithms import bc
+from dc_lesson.experiments import bc as bench_bc
+from dc_lesson import budget, data
+from dc_lesson.evaluation import metrics
+from dc_lesson.viz import plots
+from dc_lesson.data import rollout
+from dc_lesson.nn.policies import GaussianPolicy
 from dc_lesson import notebook
-from dc_lesson.results import read_result
+from dc_lesson.storage import read_result
 
 BUDGET = notebook.start(
     "the policies trained live below are tiny and every number they give means "

@@ -5,6 +5,8 @@
 #     text_representation:
 #       extension: .py
 #       format_name: percent
+#       format_version: '1.3'
+#       jupytext_version: 1.19.6
 #   kernelspec:
 #     display_name: Python 3
 #     language: python
@@ -45,8 +47,11 @@ import pandas as pd
 import torch
 from IPython.display import display
 
-from dc_lesson import bc, bench_gail, data, evaluation, gail, notebook, plots
-from dc_lesson.results import read_result
+from dc_lesson.algorithms import bc, gail
+from dc_lesson.experiments import gail as bench_gail
+from dc_lesson import data, evaluation, notebook
+from dc_lesson.viz import plots
+from dc_lesson.storage import read_result
 
 BUDGET = notebook.start(
     "the live GAIL run below is a few iterations long and its numbers mean nothing. The "
@@ -230,10 +235,10 @@ t0 = time.perf_counter()
 warm, demos, _ = bc.warm_start(LIVE_TASK, BUDGET.il_demos, seed=0,
                                max_epochs=BUDGET.bc_max_epochs)
 bc_seconds = time.perf_counter() - t0
-live_cfg = bench_gail.gail_config(LIVE_STEPS, seed=0)
+live_cfg = gail.sized(LIVE_STEPS, seed=0)
 t0 = time.perf_counter()
-live_policy, live_disc, live_log = gail.train(LIVE_TASK, live_cfg, demos,
-                                              policy=copy.deepcopy(warm), progress=False)
+live = gail.train(LIVE_TASK, demos, live_cfg, policy=copy.deepcopy(warm), progress=False)
+live_policy, live_disc, live_log = live.policy, live.models["discriminator"], live.log
 gail_seconds = time.perf_counter() - t0
 log = pd.DataFrame(live_log)
 print(f"BC warm start {bc_seconds:.0f} s; GAIL {len(log)} iterations, "

@@ -5,6 +5,8 @@
 #     text_representation:
 #       extension: .py
 #       format_name: percent
+#       format_version: '1.3'
+#       jupytext_version: 1.19.6
 #   kernelspec:
 #     display_name: Python 3
 #     language: python
@@ -55,8 +57,10 @@ import pandas as pd
 import torch
 from IPython.display import display
 
-from dc_lesson import bench_softflow, notebook, softflow
-from dc_lesson.results import RESULTS, read_result
+from dc_lesson.experiments import softflow as bench_softflow
+from dc_lesson import notebook
+from dc_lesson.density import softflow
+from dc_lesson.storage import RESULTS, read_result
 
 BUDGET = notebook.start(
     "the flows trained live below take a handful of gradient steps and every number and "
@@ -144,7 +148,7 @@ print(f"stored: {FIT['command']}\n  budget {FIT['budget']}, seeds {FIT['seeds']}
 # `noise_conditioned=False` it trains a plain CNF on the clean states), `flow.log_prob(states)`
 # the last line with the exact trace, and `flow.sample(n)` runs the ODE backwards.
 #
-
+#
 #
 # ## A toy: points on a circle
 #
@@ -499,14 +503,14 @@ draw_densities([(bench_softflow.model_name(s), FIT_ARRAYS[f"toy_density_sigma_{s
 # (the toy) or best of all (`reacher4`); we keep the paper's 0.1, and have not tried levels
 # above 0.3.
 #
-
+#
 # ## How fast is `log_prob`?
 #
 # DC evaluates $\log P_w(s)$ on every state of every rollout, so the library's `log_prob` is
 # written for speed (the module docstring of `dc_lesson/softflow.py` explains how: the exact
 # Jacobian carried forward by hand through the concat-squash layers, and the trace evaluated
 # only at 4 Gauss-Legendre nodes in $t$ instead of at every solver stage). The benchmark
-# `python -m dc_lesson.bench_softflow` compares it with the naive way (a Python loop of $D$
+# `dc-lesson perf softflow` compares it with the naive way (a Python loop of $D$
 # autograd passes inside dopri5 at $10^{-5}$) on the same pretrained flow, and stores the
 # result; the table is read from that file.
 

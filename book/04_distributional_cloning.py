@@ -5,6 +5,8 @@
 #     text_representation:
 #       extension: .py
 #       format_name: percent
+#       format_version: '1.3'
+#       jupytext_version: 1.19.6
 #   kernelspec:
 #     display_name: Python 3
 #     language: python
@@ -42,8 +44,11 @@ import pandas as pd
 import torch
 from IPython.display import display
 
-from dc_lesson import bc, bench_dc, bench_gail, claims, dc, evaluation, notebook, plots
-from dc_lesson.results import read_result
+from dc_lesson.algorithms import bc, dc
+from dc_lesson.experiments import dc as bench_dc, gail as bench_gail, claims
+from dc_lesson import evaluation, notebook
+from dc_lesson.viz import plots
+from dc_lesson.storage import read_result
 
 BUDGET = notebook.start(
     "the live DC run below is a few iterations long and its numbers mean nothing. The "
@@ -134,7 +139,7 @@ CHAPTER_START = time.perf_counter()
 #   return π
 # ```
 #
-# `dc.train(task, demos, policy, dc.DCConfig(...))` is the whole of it, composed from the
+# `dc.train(task, demos, dc.DCConfig(...), policy=start)` is the whole of it, composed from the
 # library's public BC, PPO and SoftFlow functions; it checkpoints after every loop (and every
 # few iterations), and a run resumed from its checkpoint ends identical to an uninterrupted
 # one (tested).
@@ -184,7 +189,7 @@ with pd.option_context("display.max_colwidth", 120):
 
 # %%
 LIVE_TASK = "reacher4"
-config = bench_dc.dc_config(BUDGET, seed=0)
+config = dc.preset(BUDGET, seed=0)
 print(f"{BUDGET.il_demos} demonstrations; {config.loops} loops x {config.iterations} "
       f"iterations x {config.batch_size} steps = {config.env_steps(LIVE_TASK):,} interactions")
 t0 = time.perf_counter()
@@ -192,7 +197,8 @@ start, demos, _ = bc.warm_start(LIVE_TASK, BUDGET.il_demos, seed=0,
                                 max_epochs=BUDGET.bc_max_epochs)
 bc_seconds = time.perf_counter() - t0
 t0 = time.perf_counter()
-pi, flow, log = dc.train(LIVE_TASK, demos, copy.deepcopy(start), config)
+live = dc.train(LIVE_TASK, demos, config, policy=copy.deepcopy(start))
+pi, flow, log = live.policy, live.models["flow"], live.log
 dc_seconds = time.perf_counter() - t0
 print(f"BC warm start {bc_seconds:.0f} s, DC {dc_seconds:.0f} s")
 

@@ -1,11 +1,25 @@
 """dc-lesson: the library behind the textbook on Distributional Cloning (DC).
 
-Modules: ``tasks`` (the ten dm_control ports), ``data`` (typed trajectories and the
-demonstrations on disk), ``rollout`` (collecting episodes), ``policies`` (Gaussian MLP policy,
-value network), ``ppo`` (PPO with a pluggable reward), ``experts`` (scripted and trained
-experts), ``demos`` (making demonstrations), ``render`` and ``plots`` (frames, videos,
-figures), ``budget`` (smoke / lesson / paper presets), ``bench`` (throughput benchmarks),
-``results`` (result files with provenance), ``cli`` (the ``dc-lesson`` command).
+The package is layered; a module imports only from its own layer or the ones above it in this
+list (``tests/test_layers.py`` checks it):
+
+* ``budget``, ``storage``, ``progress``: the smoke / lesson / paper presets; where the data
+  folder is and how files are written (atomic, with provenance); progress bars;
+* ``tasks``: the ten dm_control task ports; ``tasks.load`` gives a dm_env environment,
+  ``gymnasium.make("dc_lesson/NAME-v0")`` a Gymnasium one, ``tasks.make`` the fast engine;
+* ``data``: typed, validated trajectories, the demonstrations on disk (sha256-checked),
+  collecting episodes (``data.rollout``), mode shares, converters to other libraries;
+* ``nn``: the Gaussian policy and value network, and the one checked way to save models;
+* ``density``: SoftFlow, a noise-conditioned continuous normalizing flow;
+* ``algorithms``: the learners (BC, PPO, GAIL, DC), one module each, one ``train`` interface
+  and the registry ``algorithms.ALGORITHMS``;
+* ``experts``: the scripted, PPO-trained and planner experts, their floors, making the
+  demonstrations;
+* ``evaluation``: EMD, KL and reverse KL, scaled return; one way to evaluate every learner;
+* ``viz``: frames, videos and figures;
+* ``experiments``: the studies behind every stored result, and the paper's claims judged;
+  ``perf``: throughput benchmarks;
+* ``cli``: the ``dc-lesson`` command; ``notebook``: what every chapter does first.
 """
 
 import os

@@ -6,8 +6,10 @@
     dc-lesson expert train --task NAME   train (or resume) the expert of NAME with PPO
                                    (a planner's: write its settings)
     dc-lesson demos --task NAME    roll out the expert of NAME into data/demos/
-    dc-lesson bench rollout        rollout throughput against raw MuJoCo stepping
-    dc-lesson bench softflow       SoftFlow's log_prob and training speed against a naive CNF
+    dc-lesson train LEARNER --task NAME   one learner of the registry (bc, ppo, gail, dc) at
+                                   the current budget, evaluated; --save writes its policy
+    dc-lesson perf rollout         rollout throughput against raw MuJoCo stepping
+    dc-lesson perf softflow        SoftFlow's log_prob and training speed against a naive CNF
     dc-lesson bench softflow-fit --out data/results/softflow_fit.json   what SoftFlow learns
     dc-lesson bench bc --out data/results/bc_demos.json   BC against the number of demos
     dc-lesson bench bc-drift --out data/results/bc_drift.json   BC's drift from the demos
@@ -43,7 +45,9 @@ def cmd_tasks(args) -> int:
 
 
 def cmd_tour(args) -> int:
-    from dc_lesson import budget, plots, tasks, tour
+    from dc_lesson import budget, tasks
+    from dc_lesson.viz import plots
+    from dc_lesson.experiments import tour
     b = budget.current()
     out = pathlib.Path(args.out)
     t0 = time.time()
@@ -62,12 +66,12 @@ def cmd_tour(args) -> int:
     print(f"\nsaved {out / 'tour_tasks.png'} and {out / 'tour_random_returns.png'} "
           f"in {time.time() - t0:.0f} s")
     if not args.no_headline:
-        from dc_lesson import headline
+        from dc_lesson.experiments import headline
         print(f"\nThe book's headline: BC, GAIL and DC on reacher4 (budget {b.name}; "
               f"--no-headline skips it)")
         headline.run("reacher4", budget=b, out=out)
     if args.save:
-        from dc_lesson.results import write_result
+        from dc_lesson.storage import write_result
         path = write_result(args.save, {"random_returns": stats}, command=_command_line(),
                             seeds=[args.seed])
         print(f"wrote {path}")
@@ -75,7 +79,7 @@ def cmd_tour(args) -> int:
 
 
 def cmd_demos(args) -> int:
-    from dc_lesson import demos
+    from dc_lesson.experts import demos
     for name in args.task:
         entry = demos.make_demos(name, command=_command_line(), stage=args.stage,
                                  threads=args.threads, first=args.first)
@@ -92,7 +96,7 @@ def cmd_demos(args) -> int:
 
 
 def cmd_expert(args) -> int:
-    from dc_lesson import rollout
+    from dc_lesson.data import rollout
     from dc_lesson.experts import load_expert, planner, trained
     for name in args.task:
         if args.what == "train":
@@ -119,23 +123,60 @@ def cmd_expert(args) -> int:
     return 0
 
 
-def cmd_bench(args) -> int:
-    from dc_lesson import bench, budget
+def cmd_perf(args) -> int:
+    from dc_lesson import budget
     if args.what == "softflow":
-        from dc_lesson import bench_softflow
-        return bench_softflow.main(["--save", args.out] if args.out else [])
+        from dc_lesson.perf import softflow as perf_softflow
+        return perf_softflow.main(["--save", args.out] if args.out else [])
+    from dc_lesson.perf import rollout as perf_rollout
+    steps = args.steps or budget.current().bench_steps
+    perf_rollout.main(args.tasks or None, n_steps=steps, out=args.out, command=_command_line())
+    return 0
+
+
+def cmd_train(args) -> int:
+    import torch
+
+    from dc_lesson import algorithms, budget, data, evaluation
+    from dc_lesson.nn import policies
+    algo = algorithms.get(args.learner)
+    b = budget.current()
+    torch.set_num_threads(1)
+    for task in args.task:
+        demos = data.load_demos(task, n_trajectories=args.demos or b.il_demos) \
+            if algo.uses_demos else None
+        start = None
+        if args.learner in ("gail", "dc"):   # the paper's protocol: from BC's warm start
+            start = algorithms.bc.warm_start_policy(demos, args.seed,
+                                                    max_epochs=b.bc_max_epochs)
+        t0 = time.time()
+        result = algo.train(task, demos, algo.preset(b, args.seed), policy=start,
+                            progress=True)
+        ev = evaluation.evaluate_policy(task, result.policy, n_episodes=b.il_eval_episodes)
+        print(f"{task}: {algo.name} (budget {b.name}, seed {args.seed}) trained in "
+              f"{time.time() - t0:.0f} s; scaled return {ev['scaled_return']:.3f}, "
+              f"return {ev['return']:.1f} over {b.il_eval_episodes} episodes")
+        if args.save:
+            path = pathlib.Path(args.save.format(task=task, learner=algo.name))
+            policies.save_policy(result.policy, path, meta={"task": task, "algorithm": algo.name,
+                                                            "seed": args.seed, "budget": b.name})
+            print(f"saved {path}")
+    return 0
+
+
+def cmd_bench(args) -> int:
+    from dc_lesson import budget
     if args.what == "softflow-fit":
-        from dc_lesson import bench_softflow, data
+        from dc_lesson.experiments import softflow as bench_softflow
+        from dc_lesson import data
         try:
             return bench_softflow.fit_main(args.out, command=_command_line())
         except (data.DemoError, bench_softflow.FitBenchError) as e:
             print(f"dc-lesson: {e}", file=sys.stderr)
             return 2
-    if args.what == "rollout":
-        steps = args.steps or budget.current().bench_steps
-        bench.main(args.tasks or None, n_steps=steps, out=args.out, command=_command_line())
-    elif args.what == "bc":
-        from dc_lesson import bench_bc, data
+    if args.what == "bc":
+        from dc_lesson.experiments import bc as bench_bc
+        from dc_lesson import data
         try:
             bench_bc.main(args.tasks or None, demo_counts=args.demos, seeds=args.seeds,
                           eval_episodes=args.episodes, max_epochs=args.epochs, out=args.out,
@@ -144,7 +185,8 @@ def cmd_bench(args) -> int:
             print(f"dc-lesson: {e}", file=sys.stderr)
             return 2
     elif args.what in ("gail", "gail-lr"):
-        from dc_lesson import bench_bc, bench_gail, data
+        from dc_lesson.experiments import bc as bench_bc, gail as bench_gail
+        from dc_lesson import data
         try:
             bench_gail.main(args.what, tasks=args.tasks, seeds=args.seeds, steps=args.steps,
                             lr=args.lr, out=args.out, command=_command_line())
@@ -152,7 +194,7 @@ def cmd_bench(args) -> int:
             print(f"dc-lesson: {e}", file=sys.stderr)
             return 2
     elif args.what in ("dc", "dc-ablation", "dc-lr"):
-        from dc_lesson import bench_dc
+        from dc_lesson.experiments import dc as bench_dc
         if args.what == "dc":
             bench_dc.run(args.tasks or bench_dc.TASKS, out=args.out, command=_command_line())
         elif args.what == "dc-ablation":
@@ -162,7 +204,8 @@ def cmd_bench(args) -> int:
             bench_dc.run_lr((args.tasks or [bench_dc.LR_TASK])[0], seeds=args.seeds,
                             steps=args.steps, out=args.out, command=_command_line())
     elif args.what == "bc-drift":
-        from dc_lesson import bench_bc, data
+        from dc_lesson.experiments import bc as bench_bc
+        from dc_lesson import data
         b = budget.current()
         counts = args.demos or (min(b.bc_demo_counts), max(b.bc_demo_counts))
         try:
@@ -207,8 +250,23 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--steps", type=int, default=None, help="override the recipe's total steps")
     s.add_argument("--episodes", type=int, default=10, help="evaluation episodes")
     s.set_defaults(func=cmd_expert)
-    s = sub.add_parser("bench", help="benchmarks")
-    s.add_argument("what", choices=["rollout", "bc", "bc-drift", "softflow", "softflow-fit", "gail",
+    s = sub.add_parser("train", help="train one learner of the registry on a task")
+    s.add_argument("learner", help="bc, ppo, gail or dc (dc_lesson.algorithms.ALGORITHMS)")
+    s.add_argument("--task", nargs="+", required=True)
+    s.add_argument("--demos", type=int, default=None,
+                   help="demonstrations to learn from (default: the budget's il_demos)")
+    s.add_argument("--seed", type=int, default=0)
+    s.add_argument("--save", default=None,
+                   help="write the policy here ({task} and {learner} are filled in)")
+    s.set_defaults(func=cmd_train)
+    s = sub.add_parser("perf", help="throughput benchmarks (speed ratios, no science)")
+    s.add_argument("what", choices=["rollout", "softflow"])
+    s.add_argument("--tasks", nargs="*", default=None)
+    s.add_argument("--steps", type=int, default=None, help="rollout: control steps per task")
+    s.add_argument("--out", default=None, help="write the figures to this JSON file")
+    s.set_defaults(func=cmd_perf)
+    s = sub.add_parser("bench", help="the studies behind the book's stored results")
+    s.add_argument("what", choices=["bc", "bc-drift", "softflow-fit", "gail",
                                     "gail-lr", "dc", "dc-ablation", "dc-lr"])
     s.add_argument("--tasks", nargs="*", default=None)
     s.add_argument("--steps", type=int, default=None, help="rollout: control steps per task; gail, gail-lr: "
@@ -229,6 +287,11 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+def _algorithms_errors():
+    from dc_lesson import algorithms, data
+    return (algorithms.UnknownAlgorithmError, algorithms.LearnerInputError, data.DemoError)
+
+
 def main(argv=None) -> int:
     from dc_lesson import budget, tasks
     args = build_parser().parse_args(argv)
@@ -237,7 +300,8 @@ def main(argv=None) -> int:
         for name in (getattr(args, "tasks", None) or []) + (getattr(args, "task", None) or []):
             tasks.check_name(name)
         return args.func(args)
-    except (budget.BudgetError, tasks.UnknownTaskError, FileNotFoundError) as e:
+    except (budget.BudgetError, tasks.UnknownTaskError, FileNotFoundError,
+            *_algorithms_errors()) as e:
         print(f"dc-lesson: {e}", file=sys.stderr)
         return 2
 

@@ -9,9 +9,11 @@ import pytest
 import torch
 from scipy import stats
 
-from dc_lesson import bc, data, rollout
-from dc_lesson.policies import GaussianPolicy, load_policy, save_policy
-from dc_lesson.ppo import PPOConfig
+from dc_lesson.algorithms import bc
+from dc_lesson import data
+from dc_lesson.data import rollout
+from dc_lesson.nn.policies import GaussianPolicy, load_policy, save_policy
+from dc_lesson.algorithms.ppo import PPOConfig
 
 
 
@@ -213,7 +215,7 @@ def test_bc_beats_the_random_policy_on_reacher1():
 
 
 def test_warm_start_keeps_bcs_mean_and_resets_only_the_log_std():
-    from dc_lesson import bc
+    from dc_lesson.algorithms import bc
     policy, demos, log = bc.warm_start("reacher1", 3, seed=0, max_epochs=2)
     plain, _ = bc.train_bc(demos, bc.BCConfig(epochs=2, seed=0), progress=False)
     obs = torch.from_numpy(demos.trajectories[0].observations[:50])

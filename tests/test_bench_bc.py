@@ -7,7 +7,9 @@ import math
 import numpy as np
 import pytest
 
-from dc_lesson import bench_bc, budget, cli, data, rollout
+from dc_lesson.experiments import bc as bench_bc
+from dc_lesson import budget, cli, data
+from dc_lesson.data import rollout
 
 TINY = dict(demo_counts=(2, 3), seeds=(0, 1), eval_episodes=2, max_epochs=2, emd_n_max=200,
             progress=False)

@@ -5,8 +5,10 @@ import json
 import numpy as np
 import pytest
 
-from dc_lesson import bench_dc, budget, claims, dc
-from dc_lesson.results import read_result
+from dc_lesson.experiments import dc as bench_dc, claims
+from dc_lesson import budget
+from dc_lesson.algorithms import dc
+from dc_lesson.storage import read_result
 
 
 @pytest.fixture(scope="module")

@@ -1,7 +1,7 @@
 """Claims the book's prose makes about stored results, checked against the result files."""
 
 from dc_lesson import tasks
-from dc_lesson.results import read_result
+from dc_lesson.storage import read_result
 
 
 def test_chapter00_rollout_speed_claims_hold_in_the_stored_benchmark():
@@ -79,7 +79,8 @@ def test_chapter01_early_stopping_ends_reacher_runs_and_the_epoch_limit_cheetah_
 def test_chapter01_bc_concentrates_on_one_target_chosen_by_the_seed():
     import collections
 
-    from dc_lesson import data, metrics
+    from dc_lesson import data
+    from dc_lesson.evaluation import metrics
     runs = _bc_runs("reacher4", min_demos=11)
     assert len(runs) == 15
     assert all(max(r["mode_shares"].values()) >= 0.5 for r in runs)

@@ -32,7 +32,7 @@ def test_cli_reports_bad_input_without_a_traceback(capsys, monkeypatch):
     assert cli.main(["tasks"]) == 2
     assert "unknown budget" in capsys.readouterr().err
     monkeypatch.setenv(budget.ENV_VAR, "smoke")
-    assert cli.main(["bench", "rollout", "--tasks", "nope"]) == 2
+    assert cli.main(["perf", "rollout", "--tasks", "nope"]) == 2
     assert "cartpole" in capsys.readouterr().err
 
 

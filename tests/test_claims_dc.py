@@ -7,8 +7,8 @@ Files: data/results/dc_modes.json (+ .npz), dc_ablation.json, dc_lr.json, writte
 import numpy as np
 import pytest
 
-from dc_lesson import bench_dc, claims
-from dc_lesson.results import read_result
+from dc_lesson.experiments import dc as bench_dc, claims
+from dc_lesson.storage import read_result
 
 
 @pytest.fixture(scope="module")

@@ -4,8 +4,8 @@ data/results/gail_modes.json (+ .npz) and data/results/gail_lr.json."""
 import numpy as np
 import pytest
 
-from dc_lesson import bench_gail
-from dc_lesson.results import read_result
+from dc_lesson.experiments import gail as bench_gail
+from dc_lesson.storage import read_result
 
 
 @pytest.fixture(scope="module")

@@ -6,8 +6,8 @@ numbers are the ones the chapter prints, rounded as it rounds them."""
 import numpy as np
 import pytest
 
-from dc_lesson import bench_softflow as bs
-from dc_lesson.results import RESULTS, read_result
+from dc_lesson.experiments import softflow as bs
+from dc_lesson.storage import RESULTS, read_result
 
 
 @pytest.fixture(scope="module")

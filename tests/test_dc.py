@@ -7,13 +7,19 @@ import numpy as np
 import pytest
 import torch
 
-from dc_lesson import bc, dc, ppo
-from dc_lesson.policies import PolicyFileError
+from dc_lesson.algorithms import bc, dc, ppo
+from dc_lesson.nn.policies import PolicyFileError
 
 TASK = "reacher1"
 TINY = dc.DCConfig(loops=2, iterations=2, n_envs=2, n_steps=40, flow_states=200,
                    flow_iterations=4, flow_refit_iterations=3, flow_hidden=(16, 16),
                    bc_steps=2, bc_batch_size=32, ppo_epochs=2, ppo_minibatches=4, seed=3)
+
+
+def _three(r):
+    """(policy, flow, log) of a TrainResult."""
+    return r.policy, r.models["flow"], r.log
+
 
 
 @pytest.fixture(scope="module")
@@ -127,7 +133,7 @@ def _params(policy):
 
 
 def test_same_seed_same_run_and_another_seed_differs(start):
-    runs = [dc.train(TASK, start[1], copy.deepcopy(start[0]), cfg, progress=False)
+    runs = [_three(dc.train(TASK, start[1], cfg, policy=copy.deepcopy(start[0]), progress=False))
             for cfg in (TINY, TINY, dataclasses.replace(TINY, seed=4))]
     assert torch.equal(_params(runs[0][0]), _params(runs[1][0]))
     strip = lambda log: [{k: v for k, v in r.items() if "second" not in k} for r in log]
@@ -140,22 +146,22 @@ def test_same_seed_same_run_and_another_seed_differs(start):
 
 def test_a_run_interrupted_after_a_loop_resumes_identical(start, tmp_path):
     ckpt = tmp_path / "dc.ckpt"
-    full, _, full_log = dc.train(TASK, start[1], copy.deepcopy(start[0]), TINY, progress=False)
-    part, _, part_log = dc.train(TASK, start[1], copy.deepcopy(start[0]), TINY, progress=False,
-                                 checkpoint=ckpt, stop_after_loop=0)
+    full, _, full_log = _three(dc.train(TASK, start[1], TINY, policy=copy.deepcopy(start[0]), progress=False))
+    part, _, part_log = _three(dc.train(TASK, start[1], TINY, policy=copy.deepcopy(start[0]), progress=False,
+                                 checkpoint=ckpt, stop_after_loop=0))
     assert ckpt.exists() and len(part_log) == 3            # loop 0 only: flow + 2 iterations
-    resumed, _, log = dc.train(TASK, start[1], copy.deepcopy(start[0]), TINY, progress=False,
-                               checkpoint=ckpt)
+    resumed, _, log = _three(dc.train(TASK, start[1], TINY, policy=copy.deepcopy(start[0]), progress=False,
+                               checkpoint=ckpt))
     assert torch.equal(_params(resumed), _params(full))
     assert [r["env_steps"] for r in log] == [r["env_steps"] for r in full_log]
 
     with pytest.raises(PolicyFileError, match="another configuration"):
-        dc.train(TASK, start[1], copy.deepcopy(start[0]), dataclasses.replace(TINY, lr=1e-3),
+        dc.train(TASK, start[1], dataclasses.replace(TINY, lr=1e-3), policy=copy.deepcopy(start[0]),
                  progress=False, checkpoint=ckpt)
     bad = tmp_path / "bad.ckpt"
     bad.write_bytes(b"not a checkpoint")
     with pytest.raises(PolicyFileError, match="bad.ckpt"):
-        dc.train(TASK, start[1], copy.deepcopy(start[0]), TINY, progress=False, checkpoint=bad)
+        dc.train(TASK, start[1], TINY, policy=copy.deepcopy(start[0]), progress=False, checkpoint=bad)
 
 
 def test_reward_scale_maps_the_expert_median_to_one_and_far_states_to_zero():
@@ -174,7 +180,7 @@ def test_bad_configurations_and_inputs_say_what_is_wrong(start):
     with pytest.raises(ValueError, match="ppo_minibatches"):
         dc.DCConfig(n_envs=3, n_steps=5, ppo_minibatches=4)
     with pytest.raises(ValueError, match="demonstrations are of 'reacher1'"):
-        dc.train("reacher2", start[1], copy.deepcopy(start[0]), TINY, progress=False)
+        dc.train("reacher2", start[1], TINY, policy=copy.deepcopy(start[0]), progress=False)
 
 
 def test_dc_beats_the_random_policy_on_reacher1():
@@ -183,13 +189,15 @@ def test_dc_beats_the_random_policy_on_reacher1():
     test p < 0.01 and a gain of at least 0.3 in scaled return.  A broken update (a sign error,
     averaging the wrong tensors, a reward that pushes away from the expert's states) ends
     near or below random."""
-    from dc_lesson import evaluation, metrics, rollout
+    from dc_lesson import evaluation
+    from dc_lesson.evaluation import metrics
+    from dc_lesson.data import rollout
     from test_ppo import permutation_p_value
     torch.set_num_threads(1)
     policy, demos, _ = bc.warm_start(TASK, 3, seed=1, max_epochs=30)
     config = dc.DCConfig(loops=2, iterations=12, n_envs=4, n_steps=250, flow_states=2000,
                          flow_iterations=100, flow_refit_iterations=30, seed=1)
-    pi, _, log = dc.train(TASK, demos, policy, config, progress=False)
+    pi, _, log = _three(dc.train(TASK, demos, config, policy=policy, progress=False))
     learned = evaluation.evaluate_policy(TASK, pi, demos, n_episodes=10)
     rand = rollout.collect(TASK, rollout.RandomPolicy(TASK, 0), 10, seed=evaluation.EVAL_SEED,
                            progress=False)

@@ -7,8 +7,9 @@ import shutil
 import numpy as np
 import pytest
 
-from dc_lesson import data, rollout, tasks
-from dc_lesson import demos as demos_module
+from dc_lesson import data, tasks
+from dc_lesson.data import rollout
+from dc_lesson.experts import demos as demos_module
 from dc_lesson.experts import load_expert
 
 MANIFEST = data.read_manifest()
@@ -132,3 +133,42 @@ def test_save_and_read_round_trip(tmp_path):
         for field in ("observations", "actions", "rewards", "mode_features", "initial_state"):
             np.testing.assert_array_equal(getattr(a, field), getattr(b, field))
         assert (a.seed, a.mode) == (b.seed, b.mode)
+
+
+def test_trajectories_convert_to_imitations_type(monkeypatch):
+    """to_imitation maps our fields onto imitation's TrajectoryWithRew: T+1 observations, T
+    actions and rewards, terminal False (a time limit).  imitation is optional, so a stand-in
+    with its constructor's signature and its checks (obs one longer than acts) is installed."""
+    import dataclasses as dc
+    import sys
+    import types
+
+    @dc.dataclass(frozen=True)
+    class TrajectoryWithRew:   # the fields and length checks of imitation 1.0's type
+        obs: np.ndarray
+        acts: np.ndarray
+        infos: object
+        terminal: bool
+        rews: np.ndarray
+
+        def __post_init__(self):
+            assert len(self.obs) == len(self.acts) + 1 == len(self.rews) + 1
+            assert self.infos is None or len(self.infos) == len(self.acts)
+
+    mod = types.ModuleType("imitation.data.types")
+    mod.TrajectoryWithRew = TrajectoryWithRew
+    for name, m in (("imitation", types.ModuleType("imitation")),
+                    ("imitation.data", types.ModuleType("imitation.data")),
+                    ("imitation.data.types", mod)):
+        monkeypatch.setitem(sys.modules, name, m)
+    demos = data.load_demos("reacher2", n_trajectories=2)
+    out = data.convert.to_imitation(demos.trajectories)
+    assert len(out) == 2
+    t, c = demos.trajectories[1], out[1]
+    np.testing.assert_array_equal(c.obs, t.observations)
+    np.testing.assert_array_equal(c.acts, t.actions)
+    np.testing.assert_allclose(c.rews, t.rewards, rtol=1e-6)
+    assert c.terminal is False and c.infos[0]["mode"] == t.mode
+    assert data.convert.to_imitation(t).obs.shape == t.observations.shape
+    with pytest.raises(TypeError, match="not a dc_lesson Trajectory"):
+        data.convert.to_imitation([c])

@@ -10,10 +10,19 @@ import numpy as np
 import pytest
 import torch
 
-from dc_lesson import bench_gail, data, gail, ppo, rollout
-from dc_lesson.policies import GaussianPolicy, PolicyFileError
+from dc_lesson.experiments import gail as bench_gail
+from dc_lesson import data
+from dc_lesson.algorithms import gail, ppo
+from dc_lesson.data import rollout
+from dc_lesson.nn.policies import GaussianPolicy, PolicyFileError
 
 TIMING = {"steps_per_second"}
+
+
+def _three(r):
+    """(policy, discriminator, log) of a TrainResult."""
+    return r.policy, r.models["discriminator"], r.log
+
 
 
 def _pairs(trajectories):
@@ -123,8 +132,8 @@ def demos1():
 
 
 def test_same_seed_same_gail_run(demos1):
-    runs = [gail.train("reacher1", _tiny(), demos1, progress=False) for _ in range(2)]
-    other = gail.train("reacher1", _tiny(seed=4), demos1, progress=False)
+    runs = [_three(gail.train("reacher1", demos1, _tiny(), progress=False)) for _ in range(2)]
+    other = _three(gail.train("reacher1", demos1, _tiny(seed=4), progress=False))
     _same_log(runs[0][2], runs[1][2])
     _same_state(runs[0][0], runs[1][0])
     _same_state(runs[0][1], runs[1][1])
@@ -139,25 +148,25 @@ def test_checkpoint_resume_equals_an_uninterrupted_run(demos1, tmp_path):
     # 1000-step horizon, 2 x 64 steps per iteration: 10 iterations cross an episode end, and the
     # stop after iteration 3 falls mid-episode (the environments are restored by replay).
     cfg = _tiny(total_steps=1280)
-    full_pi, full_d, full_log = gail.train("reacher1", cfg, demos1, progress=False)
+    full_pi, full_d, full_log = _three(gail.train("reacher1", demos1, cfg, progress=False))
     path = tmp_path / "gail.ckpt"
-    gail.train("reacher1", cfg, demos1, progress=False, checkpoint=path, checkpoint_every=1,
-               callback=lambda row, pi, d: row["update"] == 3)
-    pi, d, log = gail.train("reacher1", cfg, demos1, progress=False, checkpoint=path)
+    gail.train("reacher1", demos1, cfg, progress=False, checkpoint=path, checkpoint_every=1,
+               callback=lambda row, pi: row["update"] == 3)
+    pi, d, log = _three(gail.train("reacher1", demos1, cfg, progress=False, checkpoint=path))
     _same_log(full_log, log)
     _same_state(full_pi, pi)
     _same_state(full_d, d)
     # A checkpoint of another configuration is refused, naming the difference.
     with pytest.raises(PolicyFileError, match="disc_lr"):
-        gail.train("reacher1", dataclasses.replace(cfg, disc_lr=1e-3), demos1, progress=False,
+        gail.train("reacher1", demos1, dataclasses.replace(cfg, disc_lr=1e-3), progress=False,
                    checkpoint=path)
 
 
 def test_the_warm_start_normaliser_stays_frozen(demos1):
-    from dc_lesson import bc
+    from dc_lesson.algorithms import bc
     policy, demos, _ = bc.warm_start("reacher1", 3, seed=0, max_epochs=2)
     before = {k: v.clone() for k, v in policy.state_dict().items()}
-    trained, _, _ = gail.train("reacher1", _tiny(), demos, policy=policy, progress=False)
+    trained, _, _ = _three(gail.train("reacher1", demos, _tiny(), policy=policy, progress=False))
     assert trained is policy
     after = trained.state_dict()
     for k in ("obs_norm.mean", "obs_norm.var", "obs_norm.count"):
@@ -181,10 +190,10 @@ def test_clear_errors_for_bad_configurations(demos1):
         gail.GAILConfig(ppo={"lr": 1e-3})
     with pytest.raises(ValueError, match="learning rate"):
         gail.GAILConfig().with_lr(-1e-3)
-    with pytest.raises(ValueError, match="obs, act"):
-        gail.train("cartpole", _tiny(), demos1, progress=False)       # reacher demos
+    with pytest.raises(ValueError, match="demonstrations are of 'reacher1', not 'cartpole'"):
+        gail.train("cartpole", demos1, _tiny(), progress=False)       # reacher demos
     with pytest.raises(ValueError, match="policy"):
-        gail.train("reacher1", _tiny(), demos1, policy=GaussianPolicy(5, 1), progress=False)
+        gail.train("reacher1", demos1, _tiny(), policy=GaussianPolicy(5, 1), progress=False)
 
 
 def test_with_lr_sets_every_learning_rate():
@@ -215,7 +224,7 @@ def test_gail_improves_over_the_random_policy_on_cartpole():
     from scipy import stats
     start = time.perf_counter()
     demos = data.load_demos("cartpole", n_trajectories=4)
-    policy, _, log = gail.train("cartpole", LEARN, demos, progress=False)
+    policy, _, log = _three(gail.train("cartpole", demos, LEARN, progress=False))
     trained_s = time.perf_counter() - start
     learned = rollout.returns(rollout.collect("cartpole", policy, 10, seed=2024,
                                               progress=False))
@@ -275,7 +284,7 @@ def test_summary_is_mean_and_sample_std_over_seeds():
 def test_on_target_counts_what_the_reacher_reward_counts():
     from dc_lesson import tasks
     from dc_lesson.tasks import reacher
-    env = tasks.load("reacher2", seed=0)
+    env = tasks.make("reacher2", seed=0)
     model = env.physics.model
     assert model.geom_size[model.geom("finger").id][0] == bench_gail.FINGER_RADIUS
     red, blue = reacher.target_positions(2)

@@ -9,7 +9,10 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
-from dc_lesson import data, demos, metrics, plots  # noqa: E402
+from dc_lesson import data
+from dc_lesson.experts import demos
+from dc_lesson.evaluation import metrics
+from dc_lesson.viz import plots  # noqa: E402
 
 
 def gaussian_kl(m0, s0, m1, s1) -> float:

@@ -6,7 +6,9 @@ import json
 import numpy as np
 import pytest
 
-from dc_lesson import demos, rollout, tasks
+from dc_lesson.experts import demos
+from dc_lesson.data import rollout
+from dc_lesson import tasks
 from dc_lesson.experts import load_expert, planner
 from dc_lesson.experts.planner import PlannerConfig, PredictiveSampling
 from tests.test_ppo import permutation_p_value
@@ -105,7 +107,7 @@ def test_a_task_whose_reward_reads_what_the_rollouts_do_not_give_is_refused():
 
 def test_the_planners_model_copy_steps_like_the_task():
     p = PredictiveSampling("walker", TINY)
-    env = tasks.load("walker", seed=1)
+    env = tasks.make("walker", seed=1)
     env.reset(seed=1)
     base = env.physics.model.ptr
     m = p.sensed.model

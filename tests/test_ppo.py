@@ -10,10 +10,16 @@ import numpy as np
 import pytest
 import torch
 
-from dc_lesson import ppo
-from dc_lesson.policies import (GaussianPolicy, PolicyFileError, StochasticPolicy, ValueNetwork,
+from dc_lesson.algorithms import ppo
+from dc_lesson.nn.policies import (GaussianPolicy, PolicyFileError, StochasticPolicy, ValueNetwork,
                                 load_policy, save_policy)
-from dc_lesson.rollout import RandomPolicy, collect, returns
+from dc_lesson.data.rollout import RandomPolicy, collect, returns
+
+
+def _three(r):
+    """(policy, value network, log) of a TrainResult."""
+    return r.policy, r.models["value"], r.log
+
 
 
 
@@ -102,7 +108,7 @@ def test_collect_batch_bootstraps_the_final_observation_at_the_time_limit():
     seeds = ppo.SeedStream(0)
     [next(seeds) for _ in range(2)]
     for i in range(2):
-        first = tasks.load("cartpole").reset(seed=next(seeds))
+        first = tasks.make("cartpole").reset(seed=next(seeds))
         np.testing.assert_array_equal(batch.obs[1000, i].numpy(), first)
     np.testing.assert_allclose(batch.episode_returns, batch.env_rewards[:1000].sum(0).numpy(),
                                rtol=1e-5)
@@ -112,7 +118,7 @@ def test_collect_batch_bootstraps_the_final_observation_at_the_time_limit():
 
 
 def test_seed_stream_continues_episode_seeds():
-    from dc_lesson.rollout import episode_seeds
+    from dc_lesson.data.rollout import episode_seeds
     stream = ppo.SeedStream(5)
     np.testing.assert_array_equal([next(stream) for _ in range(100)], episode_seeds(5, 100))
 
@@ -173,15 +179,15 @@ def test_save_and_load_policy(tmp_path):
 # -- determinism and resume ----------------------------------------------------------------------
 
 def test_same_config_gives_identical_runs():
-    pi_a, v_a, log_a = ppo.train("cartpole", TINY, progress=False)
-    pi_b, v_b, log_b = ppo.train("cartpole", TINY, progress=False)
+    pi_a, v_a, log_a = _three(ppo.train("cartpole", None, TINY, progress=False))
+    pi_b, v_b, log_b = _three(ppo.train("cartpole", None, TINY, progress=False))
     _assert_same_state(pi_a, pi_b)
     _assert_same_state(v_a, v_b)
     _assert_same_log(log_a, log_b)
     assert log_a[-1]["n_episodes"] == 2   # the run did cross an episode end
     # A different seed: other numbers from the first update on.
-    _, _, log_c = ppo.train("cartpole", dataclasses.replace(TINY, seed=8, total_steps=600),
-                            progress=False)
+    _, _, log_c = _three(ppo.train("cartpole", None, dataclasses.replace(TINY, seed=8, total_steps=600),
+                            progress=False))
     assert log_c[0]["policy_loss"] != log_a[0]["policy_loss"]
 
 
@@ -190,20 +196,20 @@ class Crash(Exception):
 
 
 def test_resumed_run_equals_uninterrupted_run(tmp_path):
-    pi_full, v_full, log_full = ppo.train("cartpole", TINY, progress=False)
+    pi_full, v_full, log_full = _three(ppo.train("cartpole", None, TINY, progress=False))
 
     ckpt = tmp_path / "run.pt"
 
-    def crash_after_third(row, policy, value_fn):
+    def crash_after_third(row, policy):
         if row["update"] == 3:
             raise Crash   # after the checkpoint of update 3 was written
 
     with pytest.raises(Crash):
-        ppo.train("cartpole", TINY, progress=False, checkpoint=ckpt, checkpoint_every=3,
+        ppo.train("cartpole", None, TINY, progress=False, checkpoint=ckpt, checkpoint_every=3,
                   callback=crash_after_third)
     resumed = []
-    pi, v, log = ppo.train("cartpole", TINY, progress=False, checkpoint=ckpt,
-                           checkpoint_every=3, callback=lambda row, *_: resumed.append(row))
+    pi, v, log = _three(ppo.train("cartpole", None, TINY, progress=False, checkpoint=ckpt,
+                           checkpoint_every=3, callback=lambda row, *_: resumed.append(row)))
     assert [row["update"] for row in resumed] == [4]   # it did start from the checkpoint
     _assert_same_state(pi_full, pi)
     _assert_same_state(v_full, v)
@@ -211,7 +217,7 @@ def test_resumed_run_equals_uninterrupted_run(tmp_path):
 
     # Another configuration must not silently continue this run.
     with pytest.raises(PolicyFileError, match="another configuration.*lr"):
-        ppo.train("cartpole", dataclasses.replace(TINY, lr=1e-3), progress=False,
+        ppo.train("cartpole", None, dataclasses.replace(TINY, lr=1e-3), progress=False,
                   checkpoint=ckpt)
 
 
@@ -223,12 +229,12 @@ def test_reward_fn_replaces_the_environment_reward():
         return -batch.next_obs[..., 0] ** 2   # keep the cart centred
 
     config = ppo.PPOConfig(n_envs=2, n_steps=32, n_epochs=1, n_minibatches=2, total_steps=64)
-    _, _, log = ppo.train("cartpole", config, reward_fn=reward_fn, progress=False)
+    _, _, log = _three(ppo.train("cartpole", None, config, reward_fn=reward_fn, progress=False))
     assert seen["shapes"] == ((32, 2, 5), (32, 2, 1), (32, 2, 5))
     assert log[0]["reward_mean"] <= 0
 
     with pytest.raises(ValueError, match="reward_fn returned shape"):
-        ppo.train("cartpole", config, reward_fn=lambda b: torch.zeros(3), progress=False)
+        ppo.train("cartpole", None, config, reward_fn=lambda b: torch.zeros(3), progress=False)
 
 
 # -- PPO learns ----------------------------------------------------------------------------------
@@ -256,7 +262,7 @@ MIN_GAIN = 300.0   # return over the random policy's (~340), on the 0..1000 scal
 
 def test_ppo_learns_cartpole():
     start = time.perf_counter()
-    policy, _, log = ppo.train("cartpole", LEARN, progress=False)
+    policy, _, log = _three(ppo.train("cartpole", None, LEARN, progress=False))
     train_seconds = time.perf_counter() - start
     trained = returns(collect("cartpole", policy, 10, seed=2024))
     random = returns(collect("cartpole", RandomPolicy("cartpole", seed=0), 10, seed=2024))

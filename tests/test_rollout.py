@@ -3,7 +3,9 @@
 import numpy as np
 import pytest
 
-from dc_lesson import render, rollout, tasks
+from dc_lesson.viz import render
+from dc_lesson.data import rollout
+from dc_lesson import tasks
 from dc_lesson.data import Trajectory, TrajectoryError
 
 

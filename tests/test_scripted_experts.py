@@ -4,7 +4,8 @@ documented (a fair coin, or the nearest target), and are deterministic given the
 import numpy as np
 import pytest
 
-from dc_lesson import rollout, tasks
+from dc_lesson.data import rollout
+from dc_lesson import tasks
 from dc_lesson.experts import scripted
 from dc_lesson.tasks import reacher
 
@@ -17,7 +18,7 @@ RANDOM_MARGIN = 400  # random actions score about 350 (cartpole) and 50-200 (rea
 
 def reach_radius() -> float:
     """Distance from a target centre within which the reward is 1 (target + finger radius)."""
-    env = tasks.load("reacher1")
+    env = tasks.make("reacher1")
     return reacher.TARGET_SIZE + float(env.physics.named.model.geom_size["finger", 0])
 
 
@@ -102,7 +103,7 @@ def test_same_seed_gives_identical_trajectories(task):
 
 
 def test_ik_solutions_put_the_fingertip_on_the_target():
-    env = tasks.load("reacher2")
+    env = tasks.make("reacher2")
     upper, fore, wrist_limit = scripted.arm_geometry(env.physics)
     assert upper == pytest.approx(0.12) and fore == pytest.approx(0.12)
     for xy in reacher.target_positions(4):

@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 import torch
 
-from dc_lesson import softflow as sf
-from dc_lesson.policies import GaussianPolicy, PolicyFileError, save_policy
+from dc_lesson.density import softflow as sf
+from dc_lesson.nn.policies import GaussianPolicy, PolicyFileError, save_policy
 
 
 @pytest.fixture(autouse=True, scope="module")
@@ -37,7 +37,7 @@ def gaussian_mixture(n: int, seed: int) -> np.ndarray:
 
 def circle(n: int, noise: float, seed: int) -> np.ndarray:
     """Points on the unit circle, plus Gaussian noise of std ``noise`` (the chapter's toy)."""
-    from dc_lesson.bench_softflow import circle as toy_circle
+    from dc_lesson.experiments.softflow import circle as toy_circle
     return toy_circle(n, seed=seed, noise=noise)
 
 
@@ -328,7 +328,7 @@ def test_same_seed_same_numbers():
 # -- the fitting benchmark (`dc-lesson bench softflow-fit`) --------------------------------------
 
 def test_fit_with_curve_is_fit_plus_a_held_out_curve():
-    from dc_lesson import bench_softflow as bs
+    from dc_lesson.experiments import softflow as bs
     train, test = bs.circle(300, seed=0), bs.circle(200, seed=1, noise=0.05)
     cfg = dataclasses.replace(FAST, iterations=12)
     flow, log, curve, seconds = bs.fit_with_curve(train, cfg, {"noisy": test}, checks=4)
@@ -345,7 +345,7 @@ def test_fit_with_curve_is_fit_plus_a_held_out_curve():
 
 
 def test_sigma_max_zero_is_the_plain_cnf_and_bad_bench_input_is_refused():
-    from dc_lesson import bench_softflow as bs
+    from dc_lesson.experiments import softflow as bs
     assert bs.toy_config(0.0).noise_conditioned is False
     assert bs.toy_config(0.3).noise_conditioned and bs.toy_config(0.3).sigma_max == 0.3
     assert bs.task_config(0.0).noise_conditioned is False
@@ -363,7 +363,7 @@ def test_sigma_max_zero_is_the_plain_cnf_and_bad_bench_input_is_refused():
 def test_the_held_out_demonstrations_are_the_last_of_each_mode():
     from types import SimpleNamespace
 
-    from dc_lesson import bench_softflow as bs
+    from dc_lesson.experiments import softflow as bs
     demos = SimpleNamespace(task="fake", modes=np.array([0, 1, 0, 2, 1, 0, 2]))
     train, held = bs._split_by_mode(demos, 3)
     assert held == [4, 5, 6] and train == [0, 1, 2, 3]
@@ -380,8 +380,8 @@ def test_the_held_out_demonstrations_are_the_last_of_each_mode():
 
 def test_bench_softflow_fit_writes_the_result_and_its_arrays(tmp_path, monkeypatch):
     from dc_lesson import budget, cli
-    from dc_lesson import bench_softflow as bs
-    from dc_lesson.results import read_result
+    from dc_lesson.experiments import softflow as bs
+    from dc_lesson.storage import read_result
     monkeypatch.setenv(budget.ENV_VAR, "smoke")
     out = tmp_path / "softflow_fit.json"
     assert cli.main(["bench", "softflow-fit", "--out", str(out)]) == 0

@@ -17,7 +17,7 @@ def test_ten_tasks_in_the_papers_order():
 @pytest.mark.parametrize("name", ALL)
 def test_spec_matches_the_environment_and_rewards_stay_in_unit_interval(name):
     spec = tasks.spec(name)
-    env = tasks.load(name, seed=0)
+    env = tasks.make(name, seed=0)
     obs = env.reset()
     assert obs.shape == (spec.obs_dim,) and obs.dtype == np.float32
     assert env.action_low.shape == (spec.act_dim,)
@@ -44,7 +44,7 @@ def test_same_seed_and_actions_give_identical_trajectories(name):
     actions = np.random.default_rng(1).uniform(-1, 1, (60, spec.act_dim))
 
     def run(seed):
-        env = tasks.load(name)
+        env = tasks.make(name)
         out = [env.reset(seed=seed)]
         rews = []
         for a in actions:
@@ -63,33 +63,79 @@ def test_same_seed_and_actions_give_identical_trajectories(name):
 
 @pytest.mark.parametrize("name", ALL)
 def test_load_seed_reaches_the_tasks_randomness(name):
-    a = tasks.load(name, seed=3).reset()
-    b = tasks.load(name, seed=3).reset()
-    c = tasks.load(name, seed=4).reset()
+    a = tasks.make(name, seed=3).reset()
+    b = tasks.make(name, seed=3).reset()
+    c = tasks.make(name, seed=4).reset()
     np.testing.assert_array_equal(a, b)
     assert not np.array_equal(a, c)
 
 
-@pytest.mark.parametrize("name", ["cartpole", "reacher4", "walker", "halfcheetah2", "ant"])
-def test_fast_step_equals_dm_controls_environment(name):
-    """TaskEnv.step makes the same calls as dm_control's Environment.step."""
+@pytest.mark.parametrize("name", tasks.NAMES)
+def test_dm_env_gymnasium_and_fast_faces_agree_over_a_whole_episode(name):
+    """The three faces of a port give the same observations and rewards at every step of a
+    whole episode, and end it together: dm_env with LAST (discount 1: a time limit), Gymnasium
+    with truncated=True, terminated=False, the fast engine with done.  A batch of one of the
+    VecEnv engine (what training uses) agrees too."""
+    import gymnasium
+    from dm_env import StepType
     spec = tasks.spec(name)
-    actions = np.random.default_rng(2).uniform(-1, 1, (40, spec.act_dim))
-    ours = tasks.load(name, seed=5)
-    theirs = tasks.load(name, seed=5).dm_env
-    o = ours.reset()
-    ts = theirs.reset()
-    np.testing.assert_array_equal(o, ts.observation["observations"].astype(np.float32))
-    for a in actions:
-        o, r, _ = ours.step(a)
-        ts = theirs.step(a)
-        np.testing.assert_array_equal(o, ts.observation["observations"].astype(np.float32))
-        assert r == ts.reward
+    actions = np.random.default_rng(2).uniform(-1, 1, (spec.horizon, spec.act_dim))
+    fast, dm = tasks.make(name), tasks.load(name)
+    gym = gymnasium.make(tasks.gym_id(name))
+    vec = tasks.load_vec(name, 1)
+    o = fast.reset(seed=5)
+    dm.task.random.seed(5)
+    ts = dm.reset()
+    g, info = gym.reset(seed=5)
+    v, _ = vec.reset([5])
+    assert ts.step_type == StepType.FIRST
+    np.testing.assert_array_equal(o, g)
+    np.testing.assert_array_equal(o, v[0])
+    np.testing.assert_array_equal(o, tasks.base.flatten_observation(ts.observation))
+    assert info["mode_feature"].shape == (spec.mode_dim,)
+    for t, a in enumerate(actions):
+        o, r, done = fast.step(a)
+        ts = dm.step(a)
+        g, gr, terminated, truncated, info = gym.step(a.astype(np.float32).astype(np.float64))
+        v, vr, _, vdone = vec.step(a[None])
+        last = t == spec.horizon - 1
+        np.testing.assert_array_equal(o, tasks.base.flatten_observation(ts.observation))
+        np.testing.assert_array_equal(o, v[0])
+        assert r == ts.reward == vr[0]
+        assert done == vdone == last == truncated == ts.last()
+        assert terminated is False
+        if last:
+            assert ts.discount == 1.0   # a time limit, not a terminal state
+        # Gymnasium steps float32 actions: the same applied action only where float32 is exact
+        if np.array_equal(a.astype(np.float32), a):
+            np.testing.assert_array_equal(o, g)
+    assert t == spec.horizon - 1
+
+
+def test_gymnasium_face_spaces_seeding_and_info():
+    import gymnasium
+    env = gymnasium.make("dc_lesson/reacher4-v0")
+    spec = tasks.spec("reacher4")
+    assert env.observation_space.shape == (spec.obs_dim,)
+    assert env.observation_space.dtype == np.float32
+    assert env.action_space.shape == (spec.act_dim,)
+    assert np.all(env.action_space.low == -1) and np.all(env.action_space.high == 1)
+    a, _ = env.reset(seed=3)
+    b, _ = env.reset(seed=3)
+    c, _ = env.reset(seed=4)
+    np.testing.assert_array_equal(a, b)
+    assert not np.array_equal(a, c)
+    obs, r, term, trunc, info = env.step(env.action_space.sample())
+    assert env.observation_space.contains(obs)
+    assert 0.0 <= r <= 1.0 and not term and not trunc
+    assert set(info) >= {"mode_feature", "t"} and info["t"] == 1
+    # the module:id form imports the registering module itself
+    assert gymnasium.make("dc_lesson.tasks:dc_lesson/cartpole-v0").observation_space.shape == (5,)
 
 
 def test_unknown_task_names_the_valid_ones():
     with pytest.raises(tasks.UnknownTaskError) as e:
-        tasks.load("nope")
+        tasks.make("nope")
     for name in tasks.NAMES:
         assert name in str(e.value)
     assert isinstance(e.value, KeyError)
@@ -97,14 +143,14 @@ def test_unknown_task_names_the_valid_ones():
 
 @pytest.mark.parametrize("bad", [np.zeros(3), np.zeros((1, 2)), [np.nan, 0.0], 0.5])
 def test_wrong_action_gives_a_clear_error(bad):
-    env = tasks.load("reacher1", seed=0)
+    env = tasks.make("reacher1", seed=0)
     env.reset()
     with pytest.raises(tasks.ActionError, match="reacher1"):
         env.step(bad)
 
 
 def test_actions_are_clipped_to_the_bounds_as_mujoco_would():
-    big, clipped = tasks.load("cartpole", seed=0), tasks.load("cartpole", seed=0)
+    big, clipped = tasks.make("cartpole", seed=0), tasks.make("cartpole", seed=0)
     big.reset(), clipped.reset()
     np.testing.assert_array_equal(big.step([5.0])[0], clipped.step([1.0])[0])
 
@@ -125,7 +171,7 @@ def _place_fingertip(env, xy):
 
 @pytest.mark.parametrize("k", [1, 2, 4])
 def test_each_reacher_target_is_rewarded_and_classified(k):
-    env = tasks.load(f"reacher{k}", seed=0)
+    env = tasks.make(f"reacher{k}", seed=0)
     env.reset()
     targets = reacher.target_positions(k)
     assert len(env.spec.modes) == (k if k > 1 else 0)
@@ -140,13 +186,13 @@ def test_each_reacher_target_is_rewarded_and_classified(k):
 
 def test_reacher_targets_are_not_observed():
     """Two reachers with different targets observe the same numbers for the same arm state."""
-    a, b = tasks.load("reacher1", seed=0), tasks.load("reacher4", seed=0)
+    a, b = tasks.make("reacher1", seed=0), tasks.make("reacher4", seed=0)
     np.testing.assert_array_equal(a.reset(), b.reset())
 
 
 @pytest.mark.parametrize("speed", [12.0, -12.0, 5.0, -5.0])
 def test_halfcheetah2_rewards_running_either_way(speed):
-    env2, env1 = tasks.load("halfcheetah2", seed=0), tasks.load("halfcheetah", seed=0)
+    env2, env1 = tasks.make("halfcheetah2", seed=0), tasks.make("halfcheetah", seed=0)
     for env in (env2, env1):
         env.reset()
         env.physics.data.qvel[0] = speed  # rootx: the torso's forward velocity
@@ -159,7 +205,7 @@ def test_halfcheetah2_rewards_running_either_way(speed):
 
 
 def test_ant_is_rewarded_for_running_forward_while_healthy():
-    env = tasks.load("ant", seed=0)
+    env = tasks.make("ant", seed=0)
     env.reset()
     env.physics.data.qpos[2] = 0.55
     env.physics.data.qvel[0] = 3.5
@@ -191,7 +237,7 @@ def test_batched_ports_of_suite_tasks_equal_the_suites_own_functions(name):
     import importlib
     mod, cls = SUITE_ORIGINALS[name].split(":")
     original = getattr(importlib.import_module(mod), cls)
-    env = tasks.load(name, seed=1)
+    env = tasks.make(name, seed=1)
     env.reset()
     rng = np.random.default_rng(3)
     for _ in range(120):
@@ -208,7 +254,7 @@ def test_batched_ports_of_suite_tasks_equal_the_suites_own_functions(name):
 
 
 def test_hopper_pays_a_quarter_for_standing_and_all_for_hopping_forward():
-    env = tasks.load("hopper", seed=0)
+    env = tasks.make("hopper", seed=0)
     env.reset()
     assert env.physics.height() > 0.6, "the hopper starts standing"
     env.physics.forward()
@@ -227,7 +273,7 @@ def test_vec_env_equals_single_envs_exactly(name):
     seeds = [3, 4, 5]
     venv = tasks.load_vec(name, 4)
     obs_v, feat_v = venv.reset(seeds)
-    singles = [tasks.load(name) for _ in seeds]
+    singles = [tasks.make(name) for _ in seeds]
     obs_s = np.stack([e.reset(seed=s) for e, s in zip(singles, seeds)])
     np.testing.assert_array_equal(obs_v, obs_s)
     np.testing.assert_array_equal(feat_v, np.stack([e.mode_feature() for e in singles]))

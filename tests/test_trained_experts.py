@@ -3,7 +3,8 @@
 import numpy as np
 import pytest
 
-from dc_lesson import rollout, tasks
+from dc_lesson.data import rollout
+from dc_lesson import tasks
 from dc_lesson.experts import load_expert, trained
 
 

@@ -210,7 +210,7 @@ class PredictiveSampling:
         self.config = config.validate()
         self.spec = _tasks.spec(task)
         self.sensed = SensedModel(task)
-        self.env_task = _tasks.load(task).task    # for its reward functions and named ids
+        self.env_task = _tasks.make(task).task    # for its reward functions and named ids
         missing = [f for f in self.env_task.fields if f not in SensedModel.FIELDS]
         if missing:
             raise ValueError(f"a planner cannot score {task!r}: its reward reads "
@@ -377,7 +377,7 @@ def write_settings(task: str, command: str = "", directory=None) -> dict:
     """``dc-lesson expert train`` for a planner task: nothing to learn; writes the planner's
     settings to ``data/experts/TASK-planner.json`` (what ``load_expert`` runs)."""
     import json
-    from dc_lesson.results import atomic_write_text, git_revision
+    from dc_lesson.storage import atomic_write_text, git_revision
     if task not in PLANNERS:
         raise ValueError(f"{task!r} has no planner expert; planner experts exist for: "
                          f"{', '.join(PLANNERS)}")

@@ -136,7 +136,7 @@ class CartpoleLQR:
     """Linear-quadratic regulator keeping the pole upright and the cart centred."""
 
     def __init__(self, Q=CARTPOLE_Q, R=CARTPOLE_R):
-        env = tasks.load("cartpole")
+        env = tasks.make("cartpole")
         self.A, self.B = linearise(env)
         self.K = solve_dlqr(self.A, self.B, np.asarray(Q, float), np.asarray(R, float))
 
@@ -258,7 +258,7 @@ class ReacherExpert:
         self.kp = np.asarray(kp, dtype=np.float64)
         self.kd = np.asarray(kd, dtype=np.float64)
         self.targets = _reacher.target_positions(n_targets)
-        env = tasks.load(f"reacher{n_targets}")
+        env = tasks.make(f"reacher{n_targets}")
         self.upper, self.fore, self.wrist_limit = arm_geometry(env.physics)
         self.chosen: np.ndarray | None = None
         self.goal_q: np.ndarray | None = None

@@ -29,11 +29,12 @@ import numpy as np
 import torch
 
 from dc_lesson import tasks as _tasks
-from dc_lesson.policies import load_policy, save_policy
-from dc_lesson.ppo import PPOConfig, train
-from dc_lesson.results import atomic_write_text, git_revision
+from dc_lesson.nn.policies import load_policy, save_policy
+from dc_lesson.algorithms.ppo import PPOConfig, train
+from dc_lesson import storage as _storage
+from dc_lesson.storage import atomic_write_text, git_revision
 
-EXPERTS_DIR = pathlib.Path(__file__).resolve().parent.parent.parent / "data" / "experts"
+EXPERTS_DIR = _storage.DATA / "experts"
 
 # Index of the torso's forward (rootx) velocity in the cheetah's observation: 8 joint
 # positions (rootx itself is left out) come first, then the 9 velocities.
@@ -112,8 +113,9 @@ def train_unit(unit: str, total_steps: int | None = None, command: str = "",
     paths["checkpoint"].parent.mkdir(parents=True, exist_ok=True)
     torch.set_num_threads(1)   # small networks: one thread is fastest and leaves a core free
     t0 = time.time()
-    policy, _, log = train(recipe.task, config, reward_fn=REWARDS[recipe.reward],
+    result = train(recipe.task, None, config, reward_fn=REWARDS[recipe.reward],
                            progress=progress, checkpoint=paths["checkpoint"])
+    policy, log = result.policy, result.log
     wall = sum(config.batch_size / row["steps_per_second"] for row in log)
     curve = [{"steps": r["steps"], "episode_return": r["episode_return"]}
              for r in log if np.isfinite(r["episode_return"])]

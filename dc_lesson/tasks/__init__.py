@@ -1,9 +1,21 @@
-"""The paper's ten tasks as dm_control task ports, and the one entry point :func:`load`.
+"""The paper's ten tasks as dm_control task ports, with three faces on the same physics.
 
->>> from dc_lesson import tasks
->>> env = tasks.load("reacher4", seed=0)
->>> obs = env.reset()
->>> obs, reward, done = env.step(env.action_low * 0)
+* :func:`load` gives a genuine dm_env environment, as ``dm_control.suite.load`` does
+  (``TimeStep``s, observation dicts, ``LAST`` at the fixed horizon, which is a time limit:
+  its discount stays 1)::
+
+      >>> from dc_lesson import tasks
+      >>> env = tasks.load("reacher4", seed=0)
+      >>> ts = env.reset(); ts = env.step(env.action_spec().minimum * 0)
+
+* Gymnasium: importing this module registers ``dc_lesson/NAME-v0`` for every port, so
+  ``gymnasium.make("dc_lesson/reacher4-v0")`` gives ``Box`` spaces, ``reset(seed=) -> (obs,
+  info)``, ``terminated=False, truncated=True`` at the horizon and the mode feature in
+  ``info`` (``gymnasium.make("dc_lesson.tasks:dc_lesson/reacher4-v0")`` imports it for you);
+* :func:`make` (and :func:`load_vec` for a batch) is the fast flat-vector engine the library's
+  own training and rollouts use: ``reset(seed) -> obs``, ``step(a) -> (obs, reward, done)``.
+
+A test checks that the three agree step for step over whole episodes.
 
 ``tasks.NAMES`` lists the ports in the paper's order; ``tasks.SPECS[name]`` is each one's
 :class:`~dc_lesson.tasks.base.TaskSpec` (sizes, horizon, timestep, mode feature, how it differs
@@ -82,8 +94,9 @@ def spec(name: str) -> TaskSpec:
     return SPECS[check_name(name)]
 
 
-def load(name: str, seed: int | None = None, *, _model=None) -> TaskEnv:
-    """Builds the task port ``name``; ``seed`` seeds the task's RandomState (initial states).
+def make(name: str, seed: int | None = None, *, _model=None) -> TaskEnv:
+    """The fast face of task port ``name``; ``seed`` seeds the task's RandomState (initial
+    states).
 
     Raises :class:`UnknownTaskError` (a ``KeyError``) naming the valid tasks for a wrong name.
     """
@@ -96,6 +109,16 @@ def load(name: str, seed: int | None = None, *, _model=None) -> TaskEnv:
     return TaskEnv(port.spec, physics, port.task(random=np.random.RandomState(seed)))
 
 
+def load(name: str, seed: int | None = None):
+    """Task port ``name`` as a dm_env environment (``dm_control.rl.control.Environment``), as
+    ``dm_control.suite.load`` gives its tasks; ``seed`` seeds the task's RandomState.
+
+    Observations are the task's observation dict; an episode ends with ``StepType.LAST``
+    after exactly ``spec.horizon`` control steps, a time limit (discount 1).
+    """
+    return make(name, seed).dm_env
+
+
 def model_and_assets(name: str) -> tuple:
     """The MJCF text and asset dict of task ``name``'s model (what a planner copies)."""
     return _PORTS[check_name(name)].model_and_assets()
@@ -105,8 +128,8 @@ def load_vec(name: str, n_envs: int) -> VecEnv:
     """``n_envs`` copies of task ``name`` stepped in lockstep (see :class:`VecEnv`)."""
     if n_envs < 1:
         raise ValueError(f"n_envs must be at least 1, got {n_envs}")
-    model = load(name).physics.model
-    return VecEnv([load(name, _model=model) for _ in range(n_envs)])
+    model = make(name).physics.model
+    return VecEnv([make(name, _model=model) for _ in range(n_envs)])
 
 
 def spec_table() -> list[dict]:
@@ -119,5 +142,24 @@ def spec_table() -> list[dict]:
             for s in SPECS.values()]
 
 
+def gym_id(name: str) -> str:
+    """The Gymnasium id of task port ``name``: ``dc_lesson/NAME-v0``."""
+    return f"dc_lesson/{check_name(name)}-v0"
+
+
+def _register_gymnasium() -> None:
+    try:
+        import gymnasium
+    except ImportError:   # pragma: no cover - gymnasium is a dependency; stay importable
+        return
+    for name in NAMES:
+        if gym_id(name) not in gymnasium.registry:
+            gymnasium.register(id=gym_id(name), entry_point="dc_lesson.tasks.gym:GymEnv",
+                               kwargs={"task": name}, disable_env_checker=False)
+
+
+_register_gymnasium()
+
 __all__ = ["NAMES", "SPECS", "ActionError", "PhysicsDiverged", "PortTask", "TaskEnv", "TaskSpec",
-           "UnknownTaskError", "VecEnv", "check_name", "load", "load_vec", "spec", "spec_table"]
+           "UnknownTaskError", "VecEnv", "check_name", "gym_id", "load", "load_vec", "make", "spec",
+           "spec_table"]

@@ -187,13 +187,16 @@ class TaskEnv:
     # -- dm_env view -------------------------------------------------------------------------
     @property
     def dm_env(self) -> control.Environment:
-        """The genuine dm_control environment on this env's physics and task (shared state)."""
+        """The genuine dm_control environment on this env's physics and task (shared state).
+
+        Its time limit is half a step short of ``horizon`` steps, so that dm_control's step
+        limit (time limit / control timestep, a float) ends the episode after exactly
+        ``horizon`` steps whatever the rounding of the division."""
         if self._dm_env is None:
+            dt = self.spec.control_timestep
             self._dm_env = control.Environment(
-                self.physics, self.task,
-                time_limit=self.spec.horizon * self.spec.control_timestep,
-                control_timestep=self.spec.control_timestep,
-                flat_observation=True)
+                self.physics, self.task, time_limit=(self.spec.horizon - 0.5) * dt,
+                control_timestep=dt)
         return self._dm_env
 
     # -- stepping ----------------------------------------------------------------------------

@@ -1,0 +1,122 @@
+"""What every learner shares: the result it returns, its input checks and its checkpoints.
+
+Every learner of :data:`dc_lesson.algorithms.ALGORITHMS` is called the same way::
+
+    result = algo.train(task, demos, config, policy=None, progress=True,
+                        checkpoint=None, callback=None)
+
+and returns a :class:`TrainResult`: the trained policy, one log row per iteration, and the
+other models it trained (``value``, ``discriminator``, ``flow``, ...).  Its config is a frozen
+dataclass with ``preset(budget, seed)`` beside it.
+
+A resumable run saves everything it needs to go on exactly as if it had not stopped (networks,
+optimisers, random generators, the environments' episode state, the log) with
+:func:`save_run`, and :func:`load_run` restores it after checking that the file was made for
+the same task, configuration and network shapes.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from typing import Any
+
+import torch
+
+from dc_lesson import tasks as _tasks
+from dc_lesson.nn.checkpoint import PolicyFileError, atomic_torch_save, load_checked
+
+
+@dataclasses.dataclass
+class TrainResult:
+    """What a learner's ``train`` returns.
+
+    Attributes:
+        policy: the trained :class:`~dc_lesson.nn.policies.GaussianPolicy`.
+        log: one dict per iteration (per epoch for BC); the keys are each learner's own.
+        models: the other models the learner trained, by name (``value``, ``discriminator``,
+            ``flow``, ...); empty for BC.
+        algorithm: the registry name of the learner.
+    """
+
+    policy: Any
+    log: list
+    models: dict = dataclasses.field(default_factory=dict)
+    algorithm: str = ""
+
+
+class LearnerInputError(ValueError):
+    """Inputs a learner cannot train with (a policy or demonstrations of another task, ...)."""
+
+
+def check_inputs(task: str, demos=None, policy=None) -> None:
+    """Refuses demonstrations or a starting policy whose task or sizes do not fit ``task``."""
+    spec = _tasks.spec(task)
+    demo_task = getattr(demos, "task", None)
+    if demo_task is not None and demo_task != task:
+        raise LearnerInputError(f"the demonstrations are of {demo_task!r}, not {task!r}: load "
+                                f"them with data.load_demos({task!r})")
+    if policy is not None:
+        cfg = policy.config()
+        if (cfg["obs_dim"], cfg["act_dim"]) != (spec.obs_dim, spec.act_dim):
+            raise LearnerInputError(
+                f"the policy is built for (obs, act) dims ({cfg['obs_dim']}, {cfg['act_dim']}); "
+                f"{task} has ({spec.obs_dim}, {spec.act_dim}): start from a policy of {task}")
+
+
+def check_checkpoint(path, ckpt: dict, task: str, saved: dict, now: dict,
+                     networks: dict | None = None, what: str = "checkpoint") -> None:
+    """The checks every resumable run makes before loading: the task, the configuration
+    (``saved`` against ``now``, both JSON-able dicts) and the shape of each network
+    (``networks`` maps a name whose ``NAME_args`` the checkpoint holds to the network)."""
+    if ckpt["task"] != task:
+        raise PolicyFileError(f"{what} {path} is of task {ckpt['task']!r}, not {task!r}")
+    if saved != now:
+        diff = {k: (saved.get(k), now.get(k)) for k in saved.keys() | now.keys()
+                if saved.get(k) != now.get(k)}
+        raise PolicyFileError(f"{what} {path} was made with another configuration "
+                              f"(saved, now): {diff}; delete it (or restart) or use the "
+                              f"saved configuration")
+    for name, net in (networks or {}).items():
+        if json.loads(ckpt[f"{name}_args"]) != net.config():
+            raise PolicyFileError(f"{what} {path} holds a {name} network built as "
+                                  f"{ckpt[f'{name}_args']}, not {json.dumps(net.config())}")
+
+
+def save_run(path, fmt: str, version: int, *, task: str, config_json: str, update: int,
+             networks: dict, optimizers: dict, generators: dict[str, torch.Generator],
+             envs, log: list, **extra) -> None:
+    """Writes a resumable run atomically: per network ``NAME_args`` and ``NAME`` (its
+    state_dict), per optimiser and generator its state under its name, the environments' state,
+    the log as JSON, and any ``extra`` entries as they are."""
+    obj = {"format": fmt, "version": version, "task": task, "config": config_json,
+           "update": update, "envs": envs.state_dict(), "log": json.dumps(log), **extra}
+    for name, net in networks.items():
+        obj[f"{name}_args"] = json.dumps(net.config())
+        obj[name] = net.state_dict()
+    for name, opt in optimizers.items():
+        obj[name] = opt.state_dict()
+    for name, gen in generators.items():
+        obj[name] = gen.get_state()
+    atomic_torch_save(obj, path)
+
+
+def load_run(path, fmt: str, version: int, what: str, *, task: str, saved_config, now_config,
+             networks: dict, optimizers: dict, generators: dict, envs) -> tuple[int, list, dict]:
+    """Restores a run written by :func:`save_run` in place; returns (update, log, the file's
+    dict).  ``saved_config(ckpt)`` turns the stored config into the dict compared with
+    ``now_config``."""
+    ckpt = load_checked(path, fmt, version, what)
+    check_checkpoint(path, ckpt, task, saved_config(ckpt), now_config, networks, what)
+    for name, net in networks.items():
+        net.load_state_dict(ckpt[name])
+    for name, opt in optimizers.items():
+        opt.load_state_dict(ckpt[name])
+    for name, gen in generators.items():
+        gen.set_state(ckpt[name])
+    envs.load_state_dict(ckpt["envs"])
+    return int(ckpt["update"]), json.loads(ckpt["log"]), ckpt
+
+
+__all__ = ["LearnerInputError", "TrainResult", "check_checkpoint", "check_inputs", "load_run",
+           "save_run"]

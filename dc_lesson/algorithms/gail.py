@@ -1,0 +1,484 @@
+"""Generative adversarial imitation learning (GAIL, Ho and Ermon 2016), in one file.
+
+The objective.  GAIL plays a two-player game between the policy pi and a discriminator
+D(s, a) in (0, 1), here the probability that the pair (s, a) came from the *expert*:
+
+    min_pi max_D   E_{(s,a) ~ expert} [ log D(s, a) ] + E_{(s,a) ~ pi} [ log(1 - D(s, a)) ]
+                   - lambda H(pi)
+
+For a fixed policy the best discriminator is D* = rho_E / (rho_E + rho_pi) (rho: the
+occupancy measures, the state-action distributions), and at D* the inner maximum equals
+2 JS(rho_E || rho_pi) - log 4: GAIL minimises the Jensen-Shannon divergence between the
+expert's and the learner's state-action distributions, through samples, without a model.
+
+The discriminator step.  D = sigmoid(f(s, a)) for an MLP f (the logit); maximising the
+objective over D is the logistic regression "expert = 1, learner = 0", i.e. minimising the
+binary cross-entropy
+
+    L_D = - mean_expert log sigmoid(f)  - mean_learner log(1 - sigmoid(f))
+
+(optionally plus a gradient penalty, below).
+
+The reward, and its sign.  The policy wants to *minimise* E_pi[log(1 - D)], i.e. to maximise
+the return of the per-step reward
+
+    r(s, a) = - log(1 - D(s, a)) = softplus(f(s, a))           (reward_form="gail", default)
+
+which is >= 0, grows without bound as D -> 1 ("this looks like the expert") and is about
+e^f, nearly 0 and flat, where D is sure the pair is the learner's (f << 0): a discriminator
+that wins outright leaves the policy little to climb.  The alternatives are
+
+    r = log D(s, a) = -softplus(-f)        (reward_form="log_d", <= 0; about f where f << 0,
+                                            GAN's "non-saturating" form)
+    r = log D - log(1 - D) = f(s, a)       (reward_form="logit", AIRL's; their sum)
+
+All three have the same optimum; they differ in scale and in the *survival bias*: a positive
+reward rewards long episodes and a negative one short ones.  Our tasks have fixed horizons
+and no early termination, so the bias does not matter here.  Because rewards are computed
+by the discriminator *after* its update on the very batch the policy collected, the policy
+always chases the discriminator's latest opinion.
+
+Why adversarial training is unstable.  The policy's reward moves every iteration (D is trained
+on the policy's newest samples), so PPO optimises a non-stationary objective; a discriminator
+that wins outright (accuracy near 1) gives r = softplus(f) with f very negative on every
+learner pair, a nearly flat reward with no direction; one that loses gives noise.  Nothing
+in the game rewards covering *every* mode of the expert: the policy is paid for pairs that
+look expert-like, and one mode done well pays as much per step as all modes done well,
+until D learns that the learner's pairs all sit in one mode and lowers its reward there
+(the chase that can oscillate between modes rather than cover them).  See chapter 02.
+
+Pseudo-code (one iteration of :func:`train`):
+
+    collect n_envs x n_steps pairs with the stochastic policy             (ppo.collect_batch)
+    for k in 1..disc_steps:                                               (discriminator_step)
+        B_E <- disc_batch expert pairs, B_pi <- disc_batch learner pairs
+        D <- Adam step on BCE(D(B_E), 1) + BCE(D(B_pi), 0) [+ gp * penalty]
+    r_t <- -log(1 - D(s_t, a_t)) for the whole batch                      (reward)
+    advantages <- GAE(r, V)                                               (ppo.compute_gae)
+    pi, V <- PPO's clipped-surrogate epochs                               (ppo.ppo_update)
+
+Implementation details, each a field of :class:`GAILConfig`:
+
+* Inputs of D: the state and the action *as applied* (clipped to the action bounds; a raw
+  Gaussian sample beyond them would let D spot the learner by |a| > 1 alone), each dimension
+  standardised with the mean and std of the expert's pairs (fixed for the whole run, so the
+  scale of D's input does not drift with the learner).
+* Gradient penalty (``grad_penalty > 0``): Gulrajani et al.'s penalty
+  gp * (||grad_x f(x)|| - 1)^2 at random interpolates of expert and learner inputs (as in
+  DAC, Kostrikov et al. 2019), which keeps f smooth and D from winning outright.
+* The BC warm start (``bc_warm_start``, used by the benchmark through
+  :func:`dc_lesson.bc.warm_start`): GAIL starts from BC's policy with the log-std reset to
+  PPO's initial value. A common and fair practice; the book says where it is used.
+* The observation normaliser inside the policy (and value network) is *frozen*, set once from
+  the expert's states.  PPO alone keeps updating it (``ppo.train``), but here that would
+  silently change a warm-started policy: BC's mean network was fitted to inputs standardised
+  with the expert's statistics, and moving them towards the learner's own states changes
+  every action without a single gradient step (and with it the BC start we want to keep).
+  Frozen expert statistics also put the policy, the value network and D on one input scale.
+* ``value_warmup``: the first iterations update only the value network (the policy's
+  learning rate is 0): a fresh critic next to a warm-started actor otherwise gives the actor
+  advantages that are mostly the critic's error, and PPO's first steps undo BC's work.
+
+Determinism: ``config.seed`` decides the initialisation of the networks, one generator for the
+action noise and PPO's minibatch order, the stream of episode seeds and one generator for the
+discriminator's minibatches (four seeds from NumPy's ``SeedSequence``, as in ``ppo.py``).  A
+checkpoint stores all of it, so a resumed run ends exactly where an uninterrupted one does.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import pathlib
+import time
+from typing import Callable
+
+import numpy as np
+import torch
+from torch import nn
+
+from dc_lesson import progress as _progress
+from dc_lesson import tasks as _tasks
+from dc_lesson.algorithms import bc as _bc
+from dc_lesson.algorithms import ppo as _ppo
+from dc_lesson.algorithms.base import TrainResult, check_inputs, load_run, save_run
+from dc_lesson.nn.policies import ACTION_HIGH, ACTION_LOW, GaussianPolicy, ValueNetwork, mlp
+
+REWARD_FORMS = ("gail", "log_d", "logit")
+
+
+def _gail_ppo_default() -> _ppo.PPOConfig:
+    # PPO for GAIL: larger batches and fewer, larger minibatches than PPOConfig's defaults;
+    # 40 gradient steps per 4096 pairs instead of 320 per 2048 (the update, not the simulator,
+    # is what costs here), a smaller learning rate so the BC start is refined, not replaced.
+    return _ppo.PPOConfig(n_envs=8, n_steps=512, n_epochs=5, n_minibatches=8, lr=3e-4,
+                          total_steps=300_000, ent_coef=0.0)
+
+
+@dataclasses.dataclass(frozen=True)
+class GAILConfig:
+    """Every knob of GAIL.  PPO's own knobs (and the run's length, ``ppo.total_steps``) live in
+    ``ppo``; ``seed`` here is the run's one seed (``ppo.seed`` is ignored)."""
+
+    ppo: _ppo.PPOConfig = dataclasses.field(default_factory=_gail_ppo_default)
+    disc_hidden: tuple[int, ...] = (64, 64)   # hidden layer sizes of the discriminator MLP
+    disc_activation: str = "tanh"   # its activation
+    disc_lr: float = 3e-4           # Adam's learning rate for the discriminator
+    disc_steps: int = 8             # discriminator gradient steps per PPO iteration
+    disc_batch: int = 512           # expert pairs and learner pairs in each of those steps
+    grad_penalty: float = 0.0       # weight of the gradient penalty (0: none); DAC uses 10
+    reward_form: str = "gail"       # "gail": -log(1-D); "log_d": log D; "logit": log D/(1-D)
+    reward_scale: float = 1.0       # multiplies the reward (PPO here does not normalise it)
+    value_warmup: int = 2           # first iterations that train only the value network
+    bc_warm_start: bool = True      # start from bc.warm_start (bench_gail.run_one honours it;
+    #                                 train() itself starts from the policy it is given)
+    entropy: float = 0.0            # entropy bonus lambda (overrides ppo.ent_coef)
+    seed: int = 0                   # the one seed of the run
+
+    def __post_init__(self):
+        if self.reward_form not in REWARD_FORMS:
+            raise ValueError(f"unknown reward_form {self.reward_form!r}; choose one of "
+                             f"{', '.join(REWARD_FORMS)}")
+        for name in ("disc_steps", "disc_batch"):
+            if getattr(self, name) < 1:
+                raise ValueError(f"GAILConfig.{name} must be at least 1, got "
+                                 f"{getattr(self, name)}")
+        for name in ("disc_lr", "reward_scale"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"GAILConfig.{name} must be positive, got "
+                                 f"{getattr(self, name)}")
+        if self.grad_penalty < 0 or self.entropy < 0 or self.value_warmup < 0:
+            raise ValueError("GAILConfig.grad_penalty, entropy and value_warmup must be >= 0")
+        if not isinstance(self.ppo, _ppo.PPOConfig):
+            raise TypeError(f"GAILConfig.ppo must be a ppo.PPOConfig, got {type(self.ppo)}")
+        if self.value_warmup >= self.ppo.n_updates:
+            raise ValueError(f"value_warmup = {self.value_warmup} leaves none of the "
+                             f"{self.ppo.n_updates} iterations to train the policy")
+
+    @property
+    def ppo_config(self) -> _ppo.PPOConfig:
+        """The PPO settings actually used: ``ppo`` with this seed and entropy weight."""
+        return dataclasses.replace(self.ppo, seed=self.seed, ent_coef=self.entropy)
+
+    def with_lr(self, lr: float) -> "GAILConfig":
+        """The same configuration with one learning rate for the policy (and value network)
+        and the discriminator: the knob of the learning-rate sweep (the paper's Figure 4)."""
+        if not lr > 0:
+            raise ValueError(f"the learning rate must be positive, got {lr}")
+        return dataclasses.replace(self, ppo=dataclasses.replace(self.ppo, lr=float(lr)),
+                                   disc_lr=float(lr))
+
+    def with_steps(self, total_steps: int) -> "GAILConfig":
+        """The same configuration for ``total_steps`` environment interactions."""
+        return dataclasses.replace(self, ppo=dataclasses.replace(self.ppo,
+                                                                 total_steps=int(total_steps)))
+
+    def to_dict(self) -> dict:
+        d = dataclasses.asdict(self)
+        d["ppo"] = json.loads(self.ppo_config.to_json())
+        return json.loads(json.dumps(d))
+
+    def to_json(self) -> str:
+        return json.dumps(self.to_dict(), sort_keys=True)
+
+
+def sized(total_steps: int, seed: int = 0, lr: float | None = None,
+          base: GAILConfig | None = None) -> GAILConfig:
+    """GAIL's configuration for a run of ``total_steps`` interactions (the library defaults).
+
+    A run shorter than four of the default batches (only at the ``smoke`` budget) collects
+    smaller batches, so it still makes four iterations, and warms its critic up for one.
+    """
+    cfg = base or GAILConfig()
+    p = cfg.ppo
+    if total_steps < 4 * p.batch_size:
+        n_steps = max(p.n_minibatches, total_steps // (4 * p.n_envs) // p.n_minibatches
+                      * p.n_minibatches)
+        p = dataclasses.replace(p, n_steps=n_steps)
+        cfg = dataclasses.replace(cfg, value_warmup=min(cfg.value_warmup, 1))
+    cfg = dataclasses.replace(cfg, ppo=dataclasses.replace(p, total_steps=int(total_steps)),
+                              seed=int(seed))
+    return cfg if lr is None else cfg.with_lr(lr)
+
+
+def preset(budget, seed: int = 0) -> GAILConfig:
+    """GAIL's configuration at a budget: the imitation protocol's ``il_steps`` interactions."""
+    return sized(budget.il_steps, seed)
+
+
+# -- the discriminator ---------------------------------------------------------------------------
+
+class Discriminator(nn.Module):
+    """f(s, a), the logit of D(s, a) = P(expert | s, a), an MLP on standardised (s, a).
+
+    The input statistics are buffers (saved with the weights) set once by
+    :meth:`fit_input_stats` from the expert's pairs.
+    """
+
+    def __init__(self, obs_dim: int, act_dim: int, hidden=(64, 64), activation: str = "tanh"):
+        super().__init__()
+        self._config = dict(obs_dim=int(obs_dim), act_dim=int(act_dim),
+                            hidden=[int(h) for h in hidden], activation=activation)
+        dim = obs_dim + act_dim
+        self.register_buffer("in_mean", torch.zeros(dim))
+        self.register_buffer("in_std", torch.ones(dim))
+        self.net = mlp(dim, hidden, 1, activation, out_gain=1.0)
+
+    def config(self) -> dict:
+        return dict(self._config)
+
+    @torch.no_grad()
+    def fit_input_stats(self, obs, act, min_std: float = 1e-3) -> None:
+        """Standardise inputs with the mean and std of these (expert) pairs; a dimension that
+        barely varies in the expert's data gets ``min_std`` so it cannot blow up."""
+        x = torch.cat([torch.as_tensor(obs, dtype=torch.float32),
+                       torch.as_tensor(act, dtype=torch.float32)], -1)
+        self.in_mean.copy_(x.mean(0))
+        self.in_std.copy_(x.std(0).clamp_min(min_std))
+
+    def inputs(self, obs, act) -> torch.Tensor:
+        """The standardised, concatenated input; actions are clipped to the bounds first."""
+        obs = torch.as_tensor(obs, dtype=torch.float32)
+        act = torch.as_tensor(act, dtype=torch.float32).clamp(ACTION_LOW, ACTION_HIGH)
+        return (torch.cat([obs, act], -1) - self.in_mean) / self.in_std
+
+    def logit_of_inputs(self, x: torch.Tensor) -> torch.Tensor:
+        return self.net(x).squeeze(-1)
+
+    def forward(self, obs, act) -> torch.Tensor:
+        """The logit f(s, a) (shape (...,)); D = sigmoid(f)."""
+        return self.logit_of_inputs(self.inputs(obs, act))
+
+
+def reward_from_logit(logit: torch.Tensor, form: str = "gail") -> torch.Tensor:
+    """The policy's reward from the discriminator's logit f (see the module docstring).
+
+    ``softplus(f) = log(1 + e^f) = -log(1 - sigmoid(f))`` is computed without forming D, so it
+    stays exact where D rounds to 0 or 1.
+    """
+    if form == "gail":
+        return nn.functional.softplus(logit)          # -log(1 - D)
+    if form == "log_d":
+        return -nn.functional.softplus(-logit)        # log D
+    if form == "logit":
+        return logit                                  # log D - log(1 - D)
+    raise ValueError(f"unknown reward form {form!r}; choose one of {', '.join(REWARD_FORMS)}")
+
+
+def discriminator_loss(disc: Discriminator, expert_obs, expert_act, learner_obs, learner_act,
+                       grad_penalty: float = 0.0,
+                       generator: torch.Generator | None = None) -> dict[str, torch.Tensor]:
+    """The discriminator's loss on one batch of expert and one of learner pairs.
+
+    Returns ``loss`` (carries the gradient: BCE plus the weighted penalty) and, detached,
+    ``bce``, ``penalty``, ``acc_expert`` (share of expert pairs with D > 1/2) and
+    ``acc_learner`` (share of learner pairs with D < 1/2).
+    """
+    xe, xl = disc.inputs(expert_obs, expert_act), disc.inputs(learner_obs, learner_act)
+    fe, fl = disc.logit_of_inputs(xe), disc.logit_of_inputs(xl)
+    bce = (nn.functional.binary_cross_entropy_with_logits(fe, torch.ones_like(fe))
+           + nn.functional.binary_cross_entropy_with_logits(fl, torch.zeros_like(fl)))
+    penalty = torch.zeros(())
+    if grad_penalty > 0:
+        n = min(len(xe), len(xl))
+        eps = torch.rand(n, 1, generator=generator)
+        x = (eps * xe[:n] + (1 - eps) * xl[:n]).requires_grad_(True)
+        grad, = torch.autograd.grad(disc.logit_of_inputs(x).sum(), x, create_graph=True)
+        penalty = ((grad.norm(dim=-1) - 1) ** 2).mean()
+    loss = bce + grad_penalty * penalty
+    return {"loss": loss, "bce": bce.detach(), "penalty": penalty.detach(),
+            "acc_expert": (fe.detach() > 0).float().mean(),
+            "acc_learner": (fl.detach() < 0).float().mean()}
+
+
+def discriminator_step(disc: Discriminator, optimizer: torch.optim.Optimizer, expert_obs,
+                       expert_act, learner_obs, learner_act, grad_penalty: float = 0.0,
+                       generator: torch.Generator | None = None) -> dict[str, float]:
+    """One Adam step on :func:`discriminator_loss`; returns its terms (before the step)."""
+    terms = discriminator_loss(disc, expert_obs, expert_act, learner_obs, learner_act,
+                               grad_penalty, generator)
+    optimizer.zero_grad()
+    terms["loss"].backward()
+    optimizer.step()
+    return {k: float(v.detach()) for k, v in terms.items()}
+
+
+expert_pairs = _bc.pairs   # all (state, action) pairs of the demonstrations, as tensors
+
+
+# -- checkpoints ---------------------------------------------------------------------------------
+
+CHECKPOINT_FORMAT = "dc_lesson.gail.checkpoint"
+CHECKPOINT_VERSION = 1
+
+
+def save_checkpoint(path, *, task: str, config: GAILConfig, update: int, policy, value_fn,
+                    disc, optimizer, disc_optimizer, generator, disc_generator, envs,
+                    log: list) -> None:
+    """Everything a GAIL run needs to go on as if it had not stopped, written atomically (the
+    layout of :func:`dc_lesson.algorithms.ppo.save_checkpoint` plus the discriminator's part)."""
+    save_run(path, CHECKPOINT_FORMAT, CHECKPOINT_VERSION, task=task,
+             config_json=config.to_json(), update=update,
+             networks={"policy": policy, "value": value_fn, "disc": disc},
+             optimizers={"optimizer": optimizer, "disc_optimizer": disc_optimizer},
+             generators={"generator": generator, "disc_generator": disc_generator},
+             envs=envs, log=log)
+
+
+def load_checkpoint(path, *, task: str, config: GAILConfig, policy, value_fn, disc, optimizer,
+                    disc_optimizer, generator, disc_generator, envs) -> tuple[int, list]:
+    """Restores a run saved by :func:`save_checkpoint` in place; returns (update, log)."""
+    update, log, _ = load_run(
+        path, CHECKPOINT_FORMAT, CHECKPOINT_VERSION, "GAIL checkpoint", task=task,
+        saved_config=lambda ckpt: json.loads(ckpt["config"]), now_config=config.to_dict(),
+        networks={"policy": policy, "value": value_fn, "disc": disc},
+        optimizers={"optimizer": optimizer, "disc_optimizer": disc_optimizer},
+        generators={"generator": generator, "disc_generator": disc_generator}, envs=envs)
+    return update, log
+
+
+# -- the loop ------------------------------------------------------------------------------------
+
+def train(task: str, demos, config: GAILConfig = GAILConfig(), *,
+          policy: GaussianPolicy | None = None, progress: bool = True, checkpoint=None,
+          callback: Callable | None = None, checkpoint_every: int = 10) -> TrainResult:
+    """GAIL on ``task`` from the expert pairs of ``demos``; returns a :class:`TrainResult`
+    (the policy, the log, ``models["discriminator"]`` and ``models["value"]``).
+
+    Args:
+        task: a task name.
+        demos: the expert's :class:`~dc_lesson.data.Demonstrations` (or anything
+            :func:`dc_lesson.algorithms.bc.episodes` accepts).
+        config: the hyperparameters and the seed.
+        policy: the policy to start from, e.g. ``bc.warm_start(...)[0]``; it is trained in
+            place.  None starts from a fresh :class:`GaussianPolicy`.
+        callback: called as ``callback(row, policy)`` after every iteration; a true return
+            value stops training.
+        progress: show a progress bar.
+        checkpoint: a file path; the run is saved there every ``checkpoint_every`` iterations
+            and at the end, and resumes from it when it exists.
+
+    ``log`` has one row per iteration: the discriminator's mean loss over its steps
+    (``disc_loss``, ``disc_bce``, ``disc_penalty``), its accuracy on the whole learner batch
+    and on as many expert pairs after its update (``acc_expert``, ``acc_learner``), its mean
+    D on both (``d_expert``, ``d_learner``), the reward's mean and std, PPO's terms, the mean
+    environment return of the training episodes that ended in the batch (NaN if none; the
+    policy's *stochastic* return, measured by the task's reward, which GAIL never sees) and
+    steps per second.
+    """
+    spec = _tasks.spec(task)
+    check_inputs(task, demos, policy)
+    pcfg = config.ppo_config
+    e_obs, e_act = expert_pairs(demos)
+    if e_obs.shape[1] != spec.obs_dim or e_act.shape[1] != spec.act_dim:
+        raise ValueError(f"the demonstrations have (obs, act) dims ({e_obs.shape[1]}, "
+                         f"{e_act.shape[1]}); {task} has ({spec.obs_dim}, {spec.act_dim})")
+    if policy is not None and (policy.obs_dim, policy.act_dim) != (spec.obs_dim, spec.act_dim):
+        raise ValueError(f"the policy is for (obs, act) dims ({policy.obs_dim}, "
+                         f"{policy.act_dim}); {task} has ({spec.obs_dim}, {spec.act_dim})")
+    init_seed, sample_seed, env_seed, disc_seed = (
+        int(s) for s in np.random.SeedSequence(config.seed).generate_state(4))
+    with torch.random.fork_rng(devices=[]):
+        torch.manual_seed(init_seed)
+        if policy is None:
+            policy = GaussianPolicy(spec.obs_dim, spec.act_dim, pcfg.hidden,
+                                    log_std_init=pcfg.log_std_init, norm_obs=pcfg.norm_obs)
+            policy.update_obs_norm(e_obs)      # the expert's statistics, then frozen
+        value_fn = ValueNetwork(spec.obs_dim, pcfg.hidden, norm_obs=policy.obs_norm is not None)
+        disc = Discriminator(spec.obs_dim, spec.act_dim, config.disc_hidden,
+                             config.disc_activation)
+    if value_fn.obs_norm is not None:        # one input scale for policy and critic, frozen
+        value_fn.obs_norm.load_state_dict(policy.obs_norm.state_dict())
+    disc.fit_input_stats(e_obs, e_act)
+    # Two parameter groups so the value warm-up can hold the policy still.
+    optimizer = torch.optim.AdamW([{"params": list(policy.parameters())},
+                                   {"params": list(value_fn.parameters())}],
+                                  lr=pcfg.lr, eps=1e-5, weight_decay=pcfg.weight_decay)
+    disc_optimizer = torch.optim.Adam(disc.parameters(), lr=config.disc_lr)
+    generator = torch.Generator().manual_seed(sample_seed)
+    disc_generator = torch.Generator().manual_seed(disc_seed)
+    envs = _ppo.EnvBatch(task, pcfg.n_envs, env_seed, pcfg.episode_steps)
+    first, log = 0, []
+    if checkpoint is not None and pathlib.Path(checkpoint).exists():
+        first, log = load_checkpoint(
+            checkpoint, task=task, config=config, policy=policy, value_fn=value_fn, disc=disc,
+            optimizer=optimizer, disc_optimizer=disc_optimizer, generator=generator,
+            disc_generator=disc_generator, envs=envs)
+
+    n_updates = pcfg.n_updates
+    bar = _progress.bar(total=n_updates, initial=first, desc=f"GAIL {task}", unit="iter",
+                        enabled=progress)
+    last_return = math.nan
+    for update in range(first, n_updates):
+        start = time.perf_counter()
+        lr = pcfg.lr * (1 - update / n_updates) if pcfg.anneal_lr else pcfg.lr
+        optimizer.param_groups[0]["lr"] = 0.0 if update < config.value_warmup else lr
+        optimizer.param_groups[1]["lr"] = lr
+
+        # 1. the learner's pairs
+        batch = _ppo.collect_batch(envs, policy, value_fn, pcfg.n_steps, generator)
+        l_obs = batch.obs.reshape(-1, spec.obs_dim)
+        l_act = batch.actions.reshape(-1, spec.act_dim)
+
+        # 2. the discriminator: expert = 1, learner = 0
+        steps = []
+        for _ in range(config.disc_steps):
+            ie = torch.randint(len(e_obs), (config.disc_batch,), generator=disc_generator)
+            il = torch.randint(len(l_obs), (config.disc_batch,), generator=disc_generator)
+            steps.append(discriminator_step(disc, disc_optimizer, e_obs[ie], e_act[ie],
+                                            l_obs[il], l_act[il], config.grad_penalty,
+                                            disc_generator))
+
+        # 3. the reward, from the updated discriminator
+        with torch.no_grad():
+            f_learner = disc(batch.obs, batch.actions)                    # (T, N)
+            ie = torch.randint(len(e_obs), (len(l_obs),), generator=disc_generator)
+            f_expert = disc(e_obs[ie], e_act[ie])
+            rewards = config.reward_scale * reward_from_logit(f_learner, config.reward_form)
+
+        # 4. PPO on that reward
+        batch.advantages, batch.returns = _ppo.compute_gae(
+            rewards, batch.values, batch.next_values, batch.dones, pcfg.gamma, pcfg.gae_lambda)
+        terms = _ppo.ppo_update(policy, value_fn, optimizer, batch, pcfg, generator)
+        # (No update_obs_norm here: the normalisers stay at the expert's statistics.)
+
+        if batch.episode_returns:
+            last_return = float(np.mean(batch.episode_returns))
+        row = {"update": update + 1, "steps": (update + 1) * pcfg.batch_size, "lr": lr,
+               "policy_frozen": update < config.value_warmup,
+               "disc_loss": float(np.mean([s["loss"] for s in steps])),
+               "disc_bce": float(np.mean([s["bce"] for s in steps])),
+               "disc_penalty": float(np.mean([s["penalty"] for s in steps])),
+               "acc_expert": float((f_expert > 0).float().mean()),
+               "acc_learner": float((f_learner < 0).float().mean()),
+               "d_expert": float(torch.sigmoid(f_expert).mean()),
+               "d_learner": float(torch.sigmoid(f_learner).mean()),
+               "reward_mean": float(rewards.mean()), "reward_std": float(rewards.std()),
+               **terms,
+               "episode_return": (float(np.mean(batch.episode_returns))
+                                  if batch.episode_returns else math.nan),
+               "n_episodes": len(batch.episode_returns),
+               "steps_per_second": pcfg.batch_size / (time.perf_counter() - start)}
+        log.append(row)
+        done = update + 1 == n_updates
+        if checkpoint is not None and ((update + 1) % checkpoint_every == 0 or done):
+            save_checkpoint(checkpoint, task=task, config=config, update=update + 1,
+                            policy=policy, value_fn=value_fn, disc=disc, optimizer=optimizer,
+                            disc_optimizer=disc_optimizer, generator=generator,
+                            disc_generator=disc_generator, envs=envs, log=log)
+        bar.update(1)
+        bar.set_postfix(ret=f"{last_return:.0f}", acc_e=f"{row['acc_expert']:.2f}",
+                        acc_l=f"{row['acc_learner']:.2f}", r=f"{row['reward_mean']:.2f}",
+                        sps=f"{row['steps_per_second']:.0f}")
+        if callback is not None and callback(row, policy):
+            break
+    bar.close()
+    policy.meta = {**getattr(policy, "meta", {}), "algorithm": "gail",
+                   "gail_config": config.to_dict(), "task": task}
+    return TrainResult(policy, log, {"discriminator": disc, "value": value_fn}, "gail")
+
+
+__all__ = ["CHECKPOINT_FORMAT", "Discriminator", "GAILConfig", "REWARD_FORMS", "preset", "sized",
+           "discriminator_loss", "discriminator_step", "expert_pairs", "load_checkpoint",
+           "reward_from_logit", "save_checkpoint", "train"]

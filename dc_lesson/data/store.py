@@ -1,0 +1,160 @@
+"""The demonstrations on disk: ``data/demos/NAME.npz`` (no pickles) and ``manifest.json``.
+
+Every file is checked against the sha256 its manifest records before it is read, and read with
+``allow_pickle=False``; the manifest's file names are confined to the demos folder.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import io
+import json
+import pathlib
+
+import numpy as np
+
+from dc_lesson import storage as _storage
+from dc_lesson import tasks as _tasks
+from dc_lesson.data.types import Demonstrations, Trajectory, TrajectoryError
+
+DEMO_FORMAT = 1
+DEMOS_DIR = _storage.DATA / "demos"
+_ARRAYS = {  # name in the .npz file -> (dtype, number of dimensions)
+    "observations": (np.float32, 3), "actions": (np.float32, 3), "rewards": (np.float64, 2),
+    "mode_features": (np.float32, 3), "initial_states": (np.float64, 2),
+    "seeds": (np.int64, 1), "modes": (np.int64, 1),
+}
+
+
+class DemoError(ValueError):
+    """A demonstration file that is missing, corrupted, or not what it claims to be."""
+
+
+def regenerate_hint(task: str) -> str:
+    return f"regenerate it with: dc-lesson demos --task {task}"
+
+
+def sha256(path) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def save_demos(trajectories: list[Trajectory], path) -> str:
+    """Writes trajectories of one task to ``path`` (.npz, atomically); returns its sha256."""
+    from dc_lesson.storage import atomic_write_bytes
+    if not trajectories:
+        raise ValueError("no trajectories to save")
+    task = trajectories[0].task
+    if any(t.task != task for t in trajectories):
+        raise ValueError("all trajectories in a demonstration file must be of one task")
+    if len({len(t) for t in trajectories}) != 1:
+        raise ValueError("demonstrations must all have the same length (the horizon)")
+    arrays = {
+        "observations": np.stack([t.observations for t in trajectories]),
+        "actions": np.stack([t.actions for t in trajectories]),
+        "rewards": np.stack([t.rewards for t in trajectories]),
+        "mode_features": np.stack([t.mode_features for t in trajectories]),
+        "initial_states": np.stack([t.initial_state for t in trajectories]),
+        "seeds": np.array([t.seed for t in trajectories], dtype=np.int64),
+        "modes": np.array([t.mode for t in trajectories], dtype=np.int64),
+        "task": np.array(task), "format": np.array(DEMO_FORMAT),
+    }
+    buf = io.BytesIO()
+    np.savez_compressed(buf, **arrays)
+    atomic_write_bytes(path, buf.getvalue())
+    return sha256(path)
+
+
+def read_demo_file(path, task: str) -> list[Trajectory]:
+    """Reads and validates a demonstration file of ``task``; clear errors for bad files."""
+    path = pathlib.Path(path)
+    hint = regenerate_hint(task)
+    if not path.exists():
+        raise DemoError(f"{path} is missing; {hint}")
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            contents = {k: z[k] for k in z.files}
+    except Exception as e:  # zip, CRC or header errors of a damaged file
+        raise DemoError(f"{path} is not a readable demonstration file ({type(e).__name__}: "
+                        f"{e}); {hint}") from None
+    missing = [k for k in (*_ARRAYS, "task", "format") if k not in contents]
+    if missing:
+        raise DemoError(f"{path} lacks {', '.join(missing)}: not a dc-lesson demonstration "
+                        f"file; {hint}")
+    if int(contents["format"]) != DEMO_FORMAT:
+        raise DemoError(f"{path} has format {int(contents['format'])}, this library reads "
+                        f"format {DEMO_FORMAT}; {hint}")
+    if str(contents["task"]) != task:
+        raise DemoError(f"{path} holds demonstrations of {str(contents['task'])!r}, not of "
+                        f"{task!r}; {hint}")
+    n = len(contents["seeds"])
+    try:
+        for k, (dtype, ndim) in _ARRAYS.items():
+            a = contents[k]
+            if a.dtype != dtype or a.ndim != ndim or len(a) != n:
+                raise TrajectoryError(f"{k} has dtype {a.dtype} and shape {a.shape}")
+        return [Trajectory(task=task, observations=contents["observations"][i],
+                           actions=contents["actions"][i], rewards=contents["rewards"][i],
+                           mode_features=contents["mode_features"][i],
+                           initial_state=contents["initial_states"][i],
+                           seed=int(contents["seeds"][i]), mode=int(contents["modes"][i]))
+                for i in range(n)]
+    except TrajectoryError as e:
+        raise DemoError(f"{path} is inconsistent: {e}; {hint}") from None
+
+
+def read_manifest(directory=None) -> dict:
+    path = pathlib.Path(directory or DEMOS_DIR) / "manifest.json"
+    if not path.exists():
+        return {"format": DEMO_FORMAT, "tasks": {}}
+    try:
+        manifest = json.loads(path.read_text())
+    except json.JSONDecodeError as e:
+        raise DemoError(f"{path} is not valid JSON ({e}); regenerate the demonstrations "
+                        f"with: dc-lesson demos --task NAME") from None
+    if not isinstance(manifest, dict) or "tasks" not in manifest:
+        raise DemoError(f"{path} is not a demonstration manifest (no 'tasks')")
+    return manifest
+
+
+def manifest_entry(task: str, directory=None) -> dict:
+    _tasks.check_name(task)
+    entry = read_manifest(directory)["tasks"].get(task)
+    if entry is None:
+        raise DemoError(f"the manifest has no demonstrations of {task!r}; "
+                        f"{regenerate_hint(task)}")
+    return entry
+
+
+def load_demos(task: str, n_trajectories: int | None = None, seed: int | None = None,
+               directory=None) -> Demonstrations:
+    """The expert demonstrations of ``task``, checked against the manifest's sha256.
+
+    ``n_trajectories`` takes a subset: with ``seed=None`` the first n (so the paper's subsets
+    of 4, 11, 18 and 25 are nested), otherwise n drawn without replacement by that seed.
+    """
+    entry = manifest_entry(task, directory)
+    path = pathlib.Path(directory or DEMOS_DIR) / entry["file"]
+    hint = regenerate_hint(task)
+    if not path.exists():
+        raise DemoError(f"{path} is missing; {hint}")
+    digest = sha256(path)
+    if digest != entry["sha256"]:
+        raise DemoError(f"{path} does not match its sha256 in the manifest (file {digest[:12]}"
+                        f"..., manifest {entry['sha256'][:12]}...): it is corrupted or was "
+                        f"changed; {hint}")
+    trajs = read_demo_file(path, task)
+    if n_trajectories is not None:
+        if not 1 <= n_trajectories <= len(trajs):
+            raise ValueError(f"{task} has {len(trajs)} demonstrations; asked for "
+                             f"{n_trajectories}")
+        if seed is None:
+            idx = np.arange(n_trajectories)
+        else:
+            idx = np.sort(np.random.default_rng(seed).choice(len(trajs), n_trajectories,
+                                                             replace=False))
+        trajs = [trajs[i] for i in idx]
+    return Demonstrations(task=task, trajectories=tuple(trajs), manifest=entry)

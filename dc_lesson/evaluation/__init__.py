@@ -1,0 +1,14 @@
+"""Judging learners: the measures, and one way to evaluate every learner.
+
+* ``metrics``: EMD (POT), k-NN KL and reverse KL of state distributions, scaled return,
+  distance to the expert's states;
+* ``evaluate``: :func:`evaluate_policy`: fresh episodes, scaled return, EMD / KL / RKL against
+  a reference set, mode shares.
+"""
+
+from dc_lesson.evaluation import metrics
+from dc_lesson.evaluation import evaluate
+from dc_lesson.evaluation.evaluate import EVAL_SEED, MEASURES, evaluate_policy, learner_features, measure
+
+__all__ = ["EVAL_SEED", "MEASURES", "evaluate", "evaluate_policy", "learner_features", "measure",
+           "metrics"]

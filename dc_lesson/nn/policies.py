@@ -1,0 +1,228 @@
+"""Gaussian policies and value networks for the on-policy algorithms (PPO, and DC on top of it).
+
+* :class:`GaussianPolicy`: an MLP for the action mean and one learned, state-independent
+  log-std per action dimension (``log_std``), as in CleanRL's ``ppo_continuous_action.py``;
+* :class:`ValueNetwork`: an MLP for the state value;
+* :class:`RunningNorm`: an optional observation normaliser kept *inside* a network as buffers,
+  so a saved ``state_dict`` carries it and a loaded policy needs nothing else;
+* :class:`StochasticPolicy`: a numpy batch policy that samples from a :class:`GaussianPolicy`
+  with its own seeded generator, for stochastic rollouts with :func:`dc_lesson.rollout.collect`
+  (passing the policy itself gives the deterministic mean);
+* :func:`save_policy` / :func:`load_policy`: a small, atomically written file with the weights,
+  the constructor arguments and JSON metadata, loaded with ``torch.load(weights_only=True)``.
+
+Actions live in [-1, 1] (the bounds of every task port): :meth:`GaussianPolicy.act` clips to
+them, while :meth:`GaussianPolicy.sample` returns the raw, unclipped sample whose log-probability
+PPO needs.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import pathlib
+from typing import Sequence
+
+import numpy as np
+import torch
+from torch import nn
+
+from dc_lesson.nn.checkpoint import (ModelFileError, PolicyFileError, atomic_torch_save,
+                                     load_checked)
+
+ACTIVATIONS = {"tanh": nn.Tanh, "relu": nn.ReLU, "elu": nn.ELU, "silu": nn.SiLU}
+
+ACTION_LOW, ACTION_HIGH = -1.0, 1.0   # the action bounds of every task port
+
+
+# -- building blocks -----------------------------------------------------------------------------
+
+def layer_init(layer: nn.Linear, gain: float = math.sqrt(2), bias: float = 0.0) -> nn.Linear:
+    """Orthogonal weights and constant bias (CleanRL's ``layer_init``)."""
+    nn.init.orthogonal_(layer.weight, gain)
+    nn.init.constant_(layer.bias, bias)
+    return layer
+
+
+def mlp(in_dim: int, hidden: Sequence[int], out_dim: int, activation: str,
+        out_gain: float) -> nn.Sequential:
+    """Linear-activation stacks with sqrt(2) gain, then a linear output layer with ``out_gain``."""
+    if activation not in ACTIVATIONS:
+        raise ValueError(f"unknown activation {activation!r}; choose one of "
+                         f"{', '.join(ACTIVATIONS)}")
+    layers, d = [], in_dim
+    for h in hidden:
+        layers += [layer_init(nn.Linear(d, h)), ACTIVATIONS[activation]()]
+        d = h
+    layers.append(layer_init(nn.Linear(d, out_dim), gain=out_gain))
+    return nn.Sequential(*layers)
+
+
+class RunningNorm(nn.Module):
+    """Observation normaliser: running mean and variance kept as buffers.
+
+    ``forward`` only applies the statistics; :meth:`update` changes them.  Keeping the two apart
+    lets PPO freeze the statistics while it collects a batch and while it learns from it, so the
+    log-probabilities it compares are computed on the same inputs.
+    """
+
+    def __init__(self, dim: int, clip: float = 10.0, eps: float = 1e-8):
+        super().__init__()
+        self.clip, self.eps = clip, eps
+        self.register_buffer("mean", torch.zeros(dim, dtype=torch.float64))
+        self.register_buffer("var", torch.ones(dim, dtype=torch.float64))
+        # A tiny prior count (as in CleanRL's RunningMeanStd) so the first update is well defined.
+        self.register_buffer("count", torch.tensor(1e-4, dtype=torch.float64))
+
+    @torch.no_grad()
+    def update(self, x: torch.Tensor) -> None:
+        """Merges a batch of observations (..., dim) into the statistics (Chan et al.)."""
+        x = torch.as_tensor(x, dtype=torch.float64).reshape(-1, self.mean.numel())
+        b_mean, b_var, b_count = x.mean(0), x.var(0, unbiased=False), x.shape[0]
+        delta, total = b_mean - self.mean, self.count + b_count
+        m2 = self.var * self.count + b_var * b_count + delta ** 2 * self.count * b_count / total
+        self.mean += delta * b_count / total
+        self.var.copy_(m2 / total)
+        self.count.copy_(total)
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        z = (x.to(torch.float64) - self.mean) / torch.sqrt(self.var + self.eps)
+        return z.clamp(-self.clip, self.clip).to(x.dtype)
+
+
+class _Normalised(nn.Module):
+    """Shared by both networks: the optional normaliser and the constructor record."""
+
+    obs_norm: RunningNorm | None
+
+    def _normalise(self, obs: torch.Tensor) -> torch.Tensor:
+        obs = torch.as_tensor(obs, dtype=torch.float32)
+        return obs if self.obs_norm is None else self.obs_norm(obs)
+
+    def update_obs_norm(self, obs) -> None:
+        """Adds observations to the normaliser's statistics (nothing without a normaliser)."""
+        if self.obs_norm is not None:
+            self.obs_norm.update(obs)
+
+    def config(self) -> dict:
+        """The constructor arguments, JSON-able: ``type(self)(**self.config())`` rebuilds it."""
+        return dict(self._config)
+
+
+# -- the networks --------------------------------------------------------------------------------
+
+class GaussianPolicy(_Normalised):
+    """pi(a | s) = N(mean(s), diag(exp(log_std))^2), independent per action dimension."""
+
+    def __init__(self, obs_dim: int, act_dim: int, hidden: Sequence[int] = (64, 64),
+                 activation: str = "tanh", log_std_init: float = -0.5, norm_obs: bool = False):
+        super().__init__()
+        self._config = dict(obs_dim=int(obs_dim), act_dim=int(act_dim),
+                            hidden=[int(h) for h in hidden], activation=activation,
+                            log_std_init=float(log_std_init), norm_obs=bool(norm_obs))
+        self.obs_dim, self.act_dim = int(obs_dim), int(act_dim)
+        self.obs_norm = RunningNorm(obs_dim) if norm_obs else None
+        # A small last layer starts every action mean near 0, so early behaviour is the noise.
+        self.mean_net = mlp(obs_dim, hidden, act_dim, activation, out_gain=0.01)
+        self.log_std = nn.Parameter(torch.full((act_dim,), float(log_std_init)))
+
+    def forward(self, obs: torch.Tensor) -> torch.Tensor:
+        """The action mean (unclipped)."""
+        return self.mean_net(self._normalise(obs))
+
+    def distribution(self, obs: torch.Tensor) -> torch.distributions.Normal:
+        mean = self(obs)
+        return torch.distributions.Normal(mean, self.log_std.exp().expand_as(mean))
+
+    def log_prob(self, obs: torch.Tensor, act: torch.Tensor) -> torch.Tensor:
+        """log pi(act | obs), summed over the action dimensions: shape (B,)."""
+        return self.distribution(obs).log_prob(torch.as_tensor(act, dtype=torch.float32)).sum(-1)
+
+    def sample(self, obs: torch.Tensor, generator: torch.Generator | None = None) -> torch.Tensor:
+        """A raw (unclipped) action sample, drawn from ``generator`` for reproducibility."""
+        dist = self.distribution(obs)
+        noise = torch.randn(dist.mean.shape, generator=generator, dtype=dist.mean.dtype)
+        return dist.mean + dist.stddev * noise
+
+    def act(self, obs: torch.Tensor, deterministic: bool = True,
+            generator: torch.Generator | None = None) -> torch.Tensor:
+        """The action to apply, clipped to the bounds: the mean, or a sample.
+
+        ``rollout.collect`` calls ``act(obs)``, so passing a policy to it runs the mean.
+        """
+        a = self(obs) if deterministic else self.sample(obs, generator)
+        return a.clamp(ACTION_LOW, ACTION_HIGH)
+
+
+class ValueNetwork(_Normalised):
+    """V(s): an MLP with one output, for PPO's advantages."""
+
+    def __init__(self, obs_dim: int, hidden: Sequence[int] = (64, 64), activation: str = "tanh",
+                 norm_obs: bool = False):
+        super().__init__()
+        self._config = dict(obs_dim=int(obs_dim), hidden=[int(h) for h in hidden],
+                            activation=activation, norm_obs=bool(norm_obs))
+        self.obs_norm = RunningNorm(obs_dim) if norm_obs else None
+        self.net = mlp(obs_dim, hidden, 1, activation, out_gain=1.0)
+
+    def forward(self, obs: torch.Tensor) -> torch.Tensor:
+        """Values, shape (...,) for observations (..., obs_dim)."""
+        return self.net(self._normalise(obs)).squeeze(-1)
+
+
+class StochasticPolicy:
+    """A numpy batch policy that samples from a :class:`GaussianPolicy` (clipped to the bounds),
+    with its own seeded generator, so ``collect(task, StochasticPolicy(pi, seed=1), ...)``
+    gives the same stochastic episodes every time."""
+
+    def __init__(self, policy: GaussianPolicy, seed: int = 0):
+        self.policy = policy
+        self.generator = torch.Generator().manual_seed(int(seed))
+
+    def __call__(self, obs: np.ndarray) -> np.ndarray:
+        with torch.no_grad():
+            a = self.policy.act(torch.as_tensor(obs, dtype=torch.float32), deterministic=False,
+                                generator=self.generator)
+        return a.numpy()
+
+
+# -- files ---------------------------------------------------------------------------------------
+
+POLICY_FORMAT = "dc_lesson.policy"
+POLICY_VERSION = 1
+_CLASSES = {"GaussianPolicy": GaussianPolicy, "ValueNetwork": ValueNetwork}
+
+
+def save_policy(policy: GaussianPolicy | ValueNetwork, path, meta: dict | None = None
+                ) -> pathlib.Path:
+    """Saves weights, constructor arguments and JSON-able ``meta`` (task, algorithm, ...)."""
+    cls = type(policy).__name__
+    if cls not in _CLASSES:
+        raise TypeError(f"save_policy saves {' or '.join(_CLASSES)}, not {cls}")
+    try:
+        meta_json = json.dumps(meta or {})
+    except TypeError as e:
+        raise TypeError(f"policy metadata must be JSON-able: {e}") from None
+    return atomic_torch_save({"format": POLICY_FORMAT, "version": POLICY_VERSION, "class": cls,
+                              "args": json.dumps(policy.config()), "meta": meta_json,
+                              "state_dict": policy.state_dict()}, path)
+
+
+def load_policy(path) -> GaussianPolicy | ValueNetwork:
+    """Rebuilds a saved network (in eval mode); its metadata is in the ``meta`` attribute."""
+    obj = load_checked(path, POLICY_FORMAT, POLICY_VERSION, "policy")
+    try:
+        cls = _CLASSES[obj["class"]]
+        net = cls(**json.loads(obj["args"]))
+        net.load_state_dict(obj["state_dict"])
+        meta = json.loads(obj["meta"])
+    except (KeyError, TypeError, ValueError, RuntimeError) as e:
+        raise PolicyFileError(f"policy file {path} is inconsistent "
+                              f"({type(e).__name__}: {e})") from None
+    net.meta = meta
+    return net.eval()
+
+
+__all__ = ["ACTIVATIONS", "GaussianPolicy", "ModelFileError", "PolicyFileError", "RunningNorm",
+           "StochasticPolicy", "ValueNetwork", "atomic_torch_save", "layer_init",
+           "load_checked", "load_policy", "mlp", "save_policy"]

@@ -1,0 +1,3 @@
+"""Throughput benchmarks only (no science): ``rollout`` (our engine against dm_control's loop
+and raw MuJoCo) and ``softflow`` (SoftFlow's fast trace against a naive CNF).  Each prints
+ratios measured within one run; ``dc-lesson perf NAME`` runs one."""

@@ -1,0 +1,113 @@
+"""Throughput benchmarks: ``dc-lesson bench rollout``.
+
+For each task it times, on one core and with uniformly random actions:
+
+* **raw**: ``mujoco.mj_step`` on the task's own model, ``n_sub_steps`` physics steps per control
+  step and nothing else: the ceiling any Python rollout path can reach;
+* **dm_control**: ``dm_control.rl.control.Environment.step`` (TimeStep and observation dict);
+* **rollout**: :func:`dc_lesson.rollout.collect`, the path every algorithm in the library uses
+  (observation, reward, mode feature, validated Trajectory records);
+
+and prints control steps per second with the ratios rollout / raw and rollout / dm_control.
+Ratios, not absolute times, are what carry over between machines.
+"""
+
+from __future__ import annotations
+
+import json
+import platform
+import time
+
+import mujoco
+import numpy as np
+
+from dc_lesson import tasks as _tasks
+from dc_lesson.data.rollout import RandomPolicy, collect
+from dc_lesson.storage import write_result
+
+
+def _raw_steps_per_s(name: str, n_steps: int) -> float:
+    env = _tasks.make(name, seed=0)
+    env.reset(seed=0)
+    m, d = env.physics.model.ptr, env.physics.data.ptr
+    rng = np.random.default_rng(0)
+    ctrl = rng.uniform(env.action_low, env.action_high, size=(n_steps, env.spec.act_dim))
+    n_sub = env.n_sub_steps
+    t0 = time.perf_counter()
+    for t in range(n_steps):
+        d.ctrl[:] = ctrl[t]
+        mujoco.mj_step(m, d, n_sub)
+    return n_steps / (time.perf_counter() - t0)
+
+
+def _dm_control_steps_per_s(name: str, n_steps: int) -> float:
+    env = _tasks.load(name, seed=0)
+    env.reset()
+    rng = np.random.default_rng(0)
+    spec = _tasks.spec(name)
+    ctrl = rng.uniform(-1, 1, size=(n_steps, spec.act_dim))
+    t0 = time.perf_counter()
+    for t in range(n_steps):
+        ts = env.step(ctrl[t])
+        if ts.last():
+            env.reset()
+    return n_steps / (time.perf_counter() - t0)
+
+
+def _rollout_steps_per_s(name: str, n_steps: int, batch: int) -> float:
+    """Steady state: ``batch`` episodes in lockstep on a VecEnv built beforehand, as an
+    algorithm that collects every iteration keeps one."""
+    venv = _tasks.load_vec(name, batch)
+    steps = max(10, min(_tasks.spec(name).horizon, n_steps // batch))
+    t0 = time.perf_counter()
+    collect(name, RandomPolicy(name, 0), batch, seed=0, max_steps=steps, progress=False,
+            venv=venv)
+    return batch * steps / (time.perf_counter() - t0)
+
+
+def rollout_benchmark(names=None, n_steps: int = 3000, batch: int = 16,
+                      repeats: int = 3) -> list[dict]:
+    """Control steps per second for each task, one row per task.
+
+    The three paths are timed back to back, ``repeats`` times; each ratio is the median of the
+    per-repeat ratios, so a machine whose speed drifts between repeats still gives a fair ratio
+    (the throughputs reported are medians too).
+    """
+    rows = []
+    for name in names or _tasks.NAMES:
+        runs = np.array([[_raw_steps_per_s(name, n_steps), _dm_control_steps_per_s(name, n_steps),
+                          _rollout_steps_per_s(name, n_steps, batch)] for _ in range(repeats)])
+        raw, dm, ours = np.median(runs, axis=0)
+        rows.append({"task": name, "physics steps per control step": _tasks.spec(name).n_sub_steps,
+                     "raw mj_step (ctrl steps/s)": raw, "dm_control Environment": dm,
+                     "dc_lesson rollout": ours,
+                     "rollout / raw": float(np.median(runs[:, 2] / runs[:, 0])),
+                     "rollout / dm_control": float(np.median(runs[:, 2] / runs[:, 1])),
+                     "repeats": repeats, "batch": batch})
+    return rows
+
+
+def format_rows(rows: list[dict]) -> str:
+    head = (f"{'task':<13}{'substeps':>9}{'raw/s':>10}{'dm_control/s':>14}{'rollout/s':>11}"
+            f"{'rollout/raw':>13}{'rollout/dm':>12}")
+    lines = [head]
+    for r in rows:
+        lines.append(f"{r['task']:<13}{r['physics steps per control step']:>9}"
+                     f"{r['raw mj_step (ctrl steps/s)']:>10.0f}{r['dm_control Environment']:>14.0f}"
+                     f"{r['dc_lesson rollout']:>11.0f}{r['rollout / raw']:>13.2f}"
+                     f"{r['rollout / dm_control']:>12.2f}")
+    return "\n".join(lines)
+
+
+def main(names=None, n_steps: int = 3000, out: str | None = None, command: str = "") -> list[dict]:
+    rows = rollout_benchmark(names, n_steps)
+    print(format_rows(rows))
+    if out:
+        write_result(out, {"benchmark": "rollout", "n_steps": n_steps, "rows": rows,
+                           "machine": platform.processor() or platform.machine()},
+                     command=command, seeds=[0])
+    return rows
+
+
+if __name__ == "__main__":  # pragma: no cover
+    print(json.dumps(main(), indent=1))
