@@ -11,9 +11,9 @@ from dc_lesson.algorithms import bc, dc, ppo
 from dc_lesson.nn.policies import PolicyFileError
 
 TASK = "reacher1"
-TINY = dc.DCConfig(loops=2, iterations=2, n_envs=2, n_steps=40, flow_states=200,
-                   flow_iterations=4, flow_refit_iterations=3, flow_hidden=(16, 16),
-                   bc_steps=2, bc_batch_size=32, ppo_epochs=2, ppo_minibatches=4, seed=3)
+TINY = dc.DCConfig(loops=2, iterations=2, flow_states=200, flow_iterations=4,
+                   flow_refit_iterations=3, flow_hidden=(16, 16), bc_steps=2, bc_batch_size=32,
+                   seed=3).with_ppo(n_envs=2, n_steps=40, n_epochs=2, n_minibatches=4)
 
 
 def _three(r):
@@ -92,7 +92,7 @@ def test_with_bc_off_an_iteration_is_a_ppo_step_averaged_with_its_start(start):
                                 lr=config.lr, eps=1e-5)
     ref_batch = copy.deepcopy(batch)
     ref_batch.advantages, ref_batch.returns = ppo.compute_gae(
-        rewards, batch.values, batch.next_values, batch.dones, config.gamma, config.gae_lambda)
+        rewards, batch.values, batch.next_values, batch.dones, config.ppo.gamma, config.ppo.gae_lambda)
     ref_gen = torch.Generator()
     ref_gen.set_state(gen.get_state())
     ppo.ppo_update(ref_pi, ref_v, ref_opt, ref_batch, config.ppo_config(), ref_gen)
@@ -177,8 +177,10 @@ def test_bad_configurations_and_inputs_say_what_is_wrong(start):
         dc.DCConfig(update="sgd")
     with pytest.raises(ValueError, match="reward must be one of"):
         dc.DCConfig(reward="log")
-    with pytest.raises(ValueError, match="ppo_minibatches"):
-        dc.DCConfig(n_envs=3, n_steps=5, ppo_minibatches=4)
+    with pytest.raises(ValueError, match="n_minibatches"):
+        dc.DCConfig().with_ppo(n_envs=3, n_steps=5, n_minibatches=4)
+    with pytest.raises(TypeError, match="PPOConfig"):
+        dc.DCConfig(ppo={"n_envs": 2})
     with pytest.raises(ValueError, match="demonstrations are of 'reacher1'"):
         dc.train("reacher2", start[1], TINY, policy=copy.deepcopy(start[0]), progress=False)
 
@@ -195,8 +197,8 @@ def test_dc_beats_the_random_policy_on_reacher1():
     from test_ppo import permutation_p_value
     torch.set_num_threads(1)
     policy, demos, _ = bc.warm_start(TASK, 3, seed=1, max_epochs=30)
-    config = dc.DCConfig(loops=2, iterations=12, n_envs=4, n_steps=250, flow_states=2000,
-                         flow_iterations=100, flow_refit_iterations=30, seed=1)
+    config = dc.DCConfig(loops=2, iterations=12, flow_states=2000, flow_iterations=100,
+                         flow_refit_iterations=30, seed=1).with_ppo(n_envs=4, n_steps=250)
     pi, _, log = _three(dc.train(TASK, demos, config, policy=policy, progress=False))
     learned = evaluation.evaluate_policy(TASK, pi, demos, n_episodes=10)
     rand = rollout.collect(TASK, rollout.RandomPolicy(TASK, 0), 10, seed=evaluation.EVAL_SEED,

@@ -69,7 +69,7 @@ The paper's averaging is this with u = 0 and x_i reset to z each iteration.
   cap at the median keeps PPO from chasing the single densest state (a mode-seeking pull of its
   own); the task's rewards are in [0, 1] too, so PPO's settings carry over.  ``"raw"`` uses
   log P_w(s') unchanged.  The quantiles are recomputed after every fit of P_w.
-* *Steps per iteration*: one PPO update of ``ppo_epochs`` x ``ppo_minibatches`` = 32 minibatch
+* *Steps per iteration*: one PPO update of ``ppo.n_epochs`` x ``ppo.n_minibatches`` = 32 minibatch
   steps on pi', and as many BC minibatch steps (``bc_steps``) of ``bc_batch_size`` expert pairs
   (and as many learner pairs) on pi: the same number of optimiser steps on each side of the
   average.  (A first try with 4 BC steps let PPO's side dominate: on reacher4, one seed, the
@@ -127,6 +127,13 @@ REWARDS = ("scaled", "raw")
 OPTIMIZER_STATES = ("own", "reset")
 
 
+# PPO's step on pi' in DC: 8 x 250 steps per iteration, 4 epochs of 8 minibatches (32 gradient
+# steps, as many as the BC step takes), the critic 64-64.
+_DC_PPO = PPOConfig(n_envs=8, n_steps=250, n_epochs=4, n_minibatches=8, clip_coef=0.2,
+                    gamma=0.99, gae_lambda=0.95, vf_coef=0.5, ent_coef=0.0, hidden=(64, 64),
+                    anneal_lr=False)
+
+
 @dataclasses.dataclass(frozen=True)
 class DCConfig:
     """Every knob of DC.  See the module docstring for why each default is what it is."""
@@ -146,7 +153,7 @@ class DCConfig:
     bc_step: bool = True         # take the BC step on pi (switch off for the ablation/tests)
     ppo_step: bool = True        # take the PPO step on pi' (likewise)
     bc_steps: int = 32           # BC minibatch steps per iteration: as many as PPO takes
-    #                              (ppo_epochs x ppo_minibatches), so neither copy dominates
+    #                              (ppo.n_epochs x ppo.n_minibatches), so neither dominates
     bc_batch_size: int = 256     # expert pairs per BC step (and as many learner pairs)
     bc_learner_pairs: bool = True    # BC on D_E u D_pi' (the paper) or D_E only
     average_log_std: bool = True     # average the log-std too (False: z takes pi''s)
@@ -155,51 +162,49 @@ class DCConfig:
     weight_decay: float = 1e-4   # AdamW decoupled weight decay ("weight decay during ADMM")
     max_grad_norm: float = 0.5   # gradient clip of both steps
     reward: str = "scaled"       # "scaled": log P_w(s') mapped to [0, 1]; "raw": log P_w(s')
-    # PPO's step on pi'
-    n_envs: int = 8              # environments pi' samples in lockstep
-    n_steps: int = 250           # steps per environment per iteration
-    ppo_epochs: int = 4          # passes over the batch
-    ppo_minibatches: int = 8     # minibatches per pass
-    clip_coef: float = 0.2
-    gamma: float = 0.99
-    gae_lambda: float = 0.95
-    vf_coef: float = 0.5
-    ent_coef: float = 0.0
-    critic_hidden: tuple[int, ...] = (64, 64)
+    # PPO's step on pi': PPO's own settings, nested as in GAILConfig.  DC's ``lr``,
+    # ``max_grad_norm`` and ``seed`` override ``ppo``'s (one rate for both copies), its
+    # learning rate is not annealed, and ``ppo.total_steps`` is unused (loops x iterations).
+    ppo: PPOConfig = dataclasses.field(default_factory=lambda: _DC_PPO)
     seed: int = 0
 
     def __post_init__(self):
         object.__setattr__(self, "flow_hidden", tuple(int(h) for h in self.flow_hidden))
-        object.__setattr__(self, "critic_hidden", tuple(int(h) for h in self.critic_hidden))
+        if not isinstance(self.ppo, PPOConfig):
+            raise TypeError(f"DCConfig.ppo must be a ppo.PPOConfig, got {type(self.ppo)}")
         for name, allowed in (("update", UPDATES), ("reward", REWARDS),
                               ("optimizer_state", OPTIMIZER_STATES)):
             if getattr(self, name) not in allowed:
                 raise ValueError(f"DCConfig.{name} must be one of {allowed}, got "
                                  f"{getattr(self, name)!r}")
-        for name in ("loops", "iterations", "bc_steps", "bc_batch_size", "n_envs", "n_steps",
-                     "ppo_epochs", "ppo_minibatches", "flow_states"):
+        for name in ("loops", "iterations", "bc_steps", "bc_batch_size", "flow_states"):
             if getattr(self, name) < 1:
                 raise ValueError(f"DCConfig.{name} must be at least 1, got "
                                  f"{getattr(self, name)}")
         if not (self.lr > 0 and self.rho > 0):
             raise ValueError(f"lr and rho must be positive, got {self.lr} and {self.rho}")
-        if (self.n_envs * self.n_steps) % self.ppo_minibatches:
-            raise ValueError(f"the batch (n_envs * n_steps = {self.n_envs * self.n_steps}) must "
-                             f"split into ppo_minibatches = {self.ppo_minibatches} equal parts")
+
+    @property
+    def n_envs(self) -> int:
+        return self.ppo.n_envs
+
+    @property
+    def n_steps(self) -> int:
+        return self.ppo.n_steps
 
     @property
     def batch_size(self) -> int:
-        return self.n_envs * self.n_steps
+        return self.ppo.batch_size
 
     def ppo_config(self) -> PPOConfig:
         """The PPO settings of the step on pi' (what :func:`ppo.ppo_update` reads)."""
-        return PPOConfig(n_envs=self.n_envs, n_steps=self.n_steps, gamma=self.gamma,
-                         gae_lambda=self.gae_lambda, n_epochs=self.ppo_epochs,
-                         n_minibatches=self.ppo_minibatches, clip_coef=self.clip_coef,
-                         ent_coef=self.ent_coef, vf_coef=self.vf_coef,
-                         max_grad_norm=self.max_grad_norm, lr=self.lr, anneal_lr=False,
-                         hidden=self.critic_hidden, total_steps=self.batch_size,
-                         seed=self.seed)
+        return dataclasses.replace(self.ppo, lr=self.lr, max_grad_norm=self.max_grad_norm,
+                                   anneal_lr=False, total_steps=self.batch_size,
+                                   seed=self.seed)
+
+    def with_ppo(self, **changes) -> "DCConfig":
+        """The same configuration with some of PPO's settings changed."""
+        return dataclasses.replace(self, ppo=dataclasses.replace(self.ppo, **changes))
 
     def flow_config(self) -> _softflow.SoftFlowConfig:
         return _softflow.SoftFlowConfig(hidden=self.flow_hidden, sigma_max=self.sigma_max,
@@ -214,7 +219,9 @@ class DCConfig:
                 + (self.loops - 1) * self.n_envs * horizon)
 
     def to_json(self) -> str:
-        return json.dumps(dataclasses.asdict(self), sort_keys=True)
+        d = dataclasses.asdict(self)
+        d["ppo"] = json.loads(self.ppo_config().to_json())
+        return json.dumps(d, sort_keys=True)
 
 
 # -- parameters as flat vectors ------------------------------------------------------------------
@@ -227,10 +234,10 @@ def preset(budget, seed: int = 0, **overrides) -> DCConfig:
     """DC's configuration for a budget: ``il_steps`` interactions split over the loops."""
     base = DCConfig(**{**DC_DEFAULTS, **overrides, "seed": seed})
     if budget.is_smoke:
-        base = dataclasses.replace(base, n_envs=2, n_steps=64, flow_states=300,
-                                   flow_iterations=5, flow_refit_iterations=3,
-                                   flow_hidden=(16, 16), ppo_minibatches=4, ppo_epochs=2,
-                                   bc_steps=4, bc_batch_size=64)
+        base = dataclasses.replace(base.with_ppo(n_envs=2, n_steps=64, n_minibatches=4,
+                                                 n_epochs=2),
+                                   flow_states=300, flow_iterations=5, flow_refit_iterations=3,
+                                   flow_hidden=(16, 16), bc_steps=4, bc_batch_size=64)
     if "iterations" not in overrides:
         per_loop = max(1, budget.il_steps // (base.loops * base.batch_size))
         base = dataclasses.replace(base, iterations=per_loop)
@@ -315,7 +322,7 @@ def make_learner(policy: GaussianPolicy, config: DCConfig, obs_dim: int) -> Lear
     """The two copies, the critic and their optimisers, from a (BC-initialised) policy."""
     pi = policy
     pi_prime = copy.deepcopy(policy)
-    value_fn = ValueNetwork(obs_dim, config.critic_hidden, norm_obs=pi.obs_norm is not None)
+    value_fn = ValueNetwork(obs_dim, config.ppo.hidden, norm_obs=pi.obs_norm is not None)
     if pi.obs_norm is not None:   # the critic sees the policy's (frozen) normalisation
         value_fn.obs_norm.load_state_dict(pi.obs_norm.state_dict())
     pi_bc = copy.deepcopy(policy) if config.update == "admm" else None
@@ -395,7 +402,7 @@ def admm_iteration(learner: Learner, batch, rewards: torch.Tensor, expert_obs: t
     # -- the PPO step (Eq. 4, second term) on pi'
     if c.ppo_step:
         batch.advantages, batch.returns = compute_gae(rewards, batch.values, batch.next_values,
-                                                      batch.dones, c.gamma, c.gae_lambda)
+                                                      batch.dones, c.ppo.gamma, c.ppo.gae_lambda)
         ppo_terms = ppo_update(L.pi_prime, L.value_fn, L.opt_ppo, batch, c.ppo_config(),
                                generator, extra_loss=prox_ppo)
         out.update({f"ppo_{k}": v for k, v in ppo_terms.items()})
