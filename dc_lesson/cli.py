@@ -125,6 +125,11 @@ def cmd_expert(args) -> int:
 
 def cmd_perf(args) -> int:
     from dc_lesson import budget
+    if args.what == "learners":
+        from dc_lesson.perf import learners as perf_learners
+        perf_learners.main(args.tasks or None, args.learners or None, repeats=args.repeats,
+                           out=args.out, command=_command_line())
+        return 0
     if args.what == "softflow":
         from dc_lesson.perf import softflow as perf_softflow
         return perf_softflow.main(["--save", args.out] if args.out else [])
@@ -260,8 +265,13 @@ def build_parser() -> argparse.ArgumentParser:
                    help="write the policy here ({task} and {learner} are filled in)")
     s.set_defaults(func=cmd_train)
     s = sub.add_parser("perf", help="throughput benchmarks (speed ratios, no science)")
-    s.add_argument("what", choices=["rollout", "softflow"])
+    s.add_argument("what", choices=["rollout", "softflow", "learners"],
+                   help="rollout: our engine against raw MuJoCo and dm_control; softflow: "
+                        "SoftFlow's density and training against a naive CNF; learners: BC, "
+                        "PPO, GAIL and DC, per phase, before and after issue 14's changes")
     s.add_argument("--tasks", nargs="*", default=None)
+    s.add_argument("--learners", nargs="*", default=None, help="learners: which (default all)")
+    s.add_argument("--repeats", type=int, default=2, help="learners: runs per path")
     s.add_argument("--steps", type=int, default=None, help="rollout: control steps per task")
     s.add_argument("--out", default=None, help="write the figures to this JSON file")
     s.set_defaults(func=cmd_perf)

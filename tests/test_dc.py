@@ -8,6 +8,7 @@ import pytest
 import torch
 
 from dc_lesson.algorithms import bc, dc, ppo
+from dc_lesson.nn import fast
 from dc_lesson.nn.policies import PolicyFileError
 
 TASK = "reacher1"
@@ -67,7 +68,7 @@ def test_with_ppo_off_an_iteration_is_a_bc_step_at_half_the_learning_rate(start)
     config = dataclasses.replace(TINY, ppo_step=False, bc_steps=1)
     learner, batch, rewards, obs, act, gen = _fixture_learner(start, config)
     ref = copy.deepcopy(learner.pi)
-    ref_opt = torch.optim.AdamW(ref.parameters(), lr=config.lr / 2, eps=1e-5,
+    ref_opt = fast.adamw(ref.parameters(), lr=config.lr / 2, eps=1e-5,
                                 weight_decay=config.weight_decay)
     ref_gen = torch.Generator()
     ref_gen.set_state(gen.get_state())
@@ -86,7 +87,7 @@ def test_with_bc_off_an_iteration_is_a_ppo_step_averaged_with_its_start(start):
     learner, batch, rewards, obs, act, gen = _fixture_learner(start, config)
     start_params = dc.flat(learner.pi.parameters()).clone()
     ref_pi, ref_v = copy.deepcopy(learner.pi_prime), copy.deepcopy(learner.value_fn)
-    ref_opt = torch.optim.AdamW([{"params": list(ref_pi.parameters()),
+    ref_opt = fast.adamw([{"params": list(ref_pi.parameters()),
                                   "weight_decay": config.weight_decay},
                                  {"params": list(ref_v.parameters()), "weight_decay": 0.0}],
                                 lr=config.lr, eps=1e-5)

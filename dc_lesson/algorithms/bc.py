@@ -62,7 +62,9 @@ import torch
 
 from dc_lesson.data.types import Demonstrations, Trajectory
 from dc_lesson import progress as _progress
+from dc_lesson import timing as _timing
 from dc_lesson.algorithms.base import LearnerInputError, TrainResult, check_inputs
+from dc_lesson.nn import fast as _fast
 from dc_lesson.nn.policies import GaussianPolicy
 
 
@@ -191,6 +193,7 @@ def bc_loss(policy: GaussianPolicy, obs, act) -> dict[str, torch.Tensor]:
             "log_std": policy.log_std.detach().mean()}
 
 
+@_timing.timed("bc_step")
 def bc_step(policy: GaussianPolicy, optimizer: torch.optim.Optimizer, obs, act,
             max_grad_norm: float | None = None,
             extra_loss=None) -> dict[str, float]:
@@ -204,7 +207,7 @@ def bc_step(policy: GaussianPolicy, optimizer: torch.optim.Optimizer, obs, act,
     loss.backward()
     params = [p for group in optimizer.param_groups for p in group["params"]]
     # clip_grad_norm_ with an infinite bound measures the norm without changing the gradient.
-    grad_norm = torch.nn.utils.clip_grad_norm_(
+    grad_norm = _fast.clip_grad_norm_(
         params, math.inf if max_grad_norm is None else max_grad_norm)
     optimizer.step()
     return {**{k: float(v.detach()) for k, v in terms.items()}, "grad_norm": float(grad_norm)}
@@ -262,7 +265,7 @@ def train_bc(demos_or_trajectories, config: BCConfig = BCConfig(), progress: boo
     # The normaliser sees the training states once, then stays fixed: the loss must not move
     # under the optimiser's feet, and validation states must not leak into training.
     policy.update_obs_norm(train_obs)
-    optimizer = torch.optim.AdamW(policy.parameters(), lr=config.lr,
+    optimizer = _fast.adamw(policy.parameters(), lr=config.lr,
                                   weight_decay=config.weight_decay)
     generator = torch.Generator().manual_seed(order_seed)
 

@@ -112,11 +112,13 @@ import numpy as np
 import torch
 
 from dc_lesson import progress as _progress
+from dc_lesson import timing as _timing
 from dc_lesson.algorithms import bc as _bc
 from dc_lesson.algorithms.base import TrainResult, check_inputs
 from dc_lesson.density import softflow as _softflow
 from dc_lesson import tasks as _tasks
 from dc_lesson.data import Demonstrations
+from dc_lesson.nn import fast as _fast
 from dc_lesson.nn.policies import (GaussianPolicy, PolicyFileError, ValueNetwork,
                                 atomic_torch_save, load_checked)
 from dc_lesson.algorithms.ppo import (EnvBatch, PPOConfig, check_checkpoint, collect_batch, compute_gae,
@@ -294,6 +296,7 @@ class RewardScale:
         return ((logp - self.low) / (self.high - self.low)).clamp(0.0, 1.0)
 
 
+@_timing.timed("log_p")
 def state_log_density(flow: _softflow.SoftFlow, states: torch.Tensor) -> torch.Tensor:
     """log P_w of (..., obs_dim) states, same leading shape."""
     shape = states.shape[:-1]
@@ -327,10 +330,10 @@ def make_learner(policy: GaussianPolicy, config: DCConfig, obs_dim: int) -> Lear
         value_fn.obs_norm.load_state_dict(pi.obs_norm.state_dict())
     pi_bc = copy.deepcopy(policy) if config.update == "admm" else None
     bc_target = pi_bc if pi_bc is not None else pi
-    opt_bc = torch.optim.AdamW(bc_target.parameters(), lr=config.lr, eps=1e-5,
+    opt_bc = _fast.adamw(bc_target.parameters(), lr=config.lr, eps=1e-5,
                                weight_decay=config.weight_decay)
     # Weight decay on the policy copy only, not on the critic.
-    opt_ppo = torch.optim.AdamW([{"params": list(pi_prime.parameters()),
+    opt_ppo = _fast.adamw([{"params": list(pi_prime.parameters()),
                                   "weight_decay": config.weight_decay},
                                  {"params": list(value_fn.parameters()), "weight_decay": 0.0}],
                                 lr=config.lr, eps=1e-5)
@@ -590,6 +593,7 @@ def train(task: str, demos: Demonstrations, config: DCConfig = DCConfig(), *,
     return TrainResult(learner.pi, log, {"flow": flow, "value": learner.value_fn}, "dc")
 
 
+@_timing.timed("refit_rollout")
 def _learner_states(task: str, learner: Learner, config: DCConfig,
                     generator: torch.Generator) -> torch.Tensor:
     """Alg. 1, line 5: ``n_envs`` whole episodes of the stochastic policy pi, from initial

@@ -99,10 +99,12 @@ import torch
 from torch import nn
 
 from dc_lesson import progress as _progress
+from dc_lesson import timing as _timing
 from dc_lesson import tasks as _tasks
 from dc_lesson.algorithms import bc as _bc
 from dc_lesson.algorithms import ppo as _ppo
 from dc_lesson.algorithms.base import TrainResult, check_inputs, load_run, save_run
+from dc_lesson.nn import fast as _fast
 from dc_lesson.nn.policies import ACTION_HIGH, ACTION_LOW, GaussianPolicy, ValueNetwork, mlp
 
 REWARD_FORMS = ("gail", "log_d", "logit")
@@ -292,6 +294,7 @@ def discriminator_loss(disc: Discriminator, expert_obs, expert_act, learner_obs,
             "acc_learner": (fl.detach() < 0).float().mean()}
 
 
+@_timing.timed("disc_step")
 def discriminator_step(disc: Discriminator, optimizer: torch.optim.Optimizer, expert_obs,
                        expert_act, learner_obs, learner_act, grad_penalty: float = 0.0,
                        generator: torch.Generator | None = None) -> dict[str, float]:
@@ -392,10 +395,10 @@ def train(task: str, demos, config: GAILConfig = GAILConfig(), *,
         value_fn.obs_norm.load_state_dict(policy.obs_norm.state_dict())
     disc.fit_input_stats(e_obs, e_act)
     # Two parameter groups so the value warm-up can hold the policy still.
-    optimizer = torch.optim.AdamW([{"params": list(policy.parameters())},
+    optimizer = _fast.adamw([{"params": list(policy.parameters())},
                                    {"params": list(value_fn.parameters())}],
                                   lr=pcfg.lr, eps=1e-5, weight_decay=pcfg.weight_decay)
-    disc_optimizer = torch.optim.Adam(disc.parameters(), lr=config.disc_lr)
+    disc_optimizer = _fast.adam(disc.parameters(), lr=config.disc_lr)
     generator = torch.Generator().manual_seed(sample_seed)
     disc_generator = torch.Generator().manual_seed(disc_seed)
     envs = _ppo.EnvBatch(task, pcfg.n_envs, env_seed, pcfg.episode_steps)

@@ -39,10 +39,12 @@ import numpy as np
 import torch
 
 from dc_lesson import progress as _progress
+from dc_lesson import timing as _timing
 from dc_lesson import tasks as _tasks
 from dc_lesson.algorithms.base import (TrainResult, check_checkpoint, check_inputs, load_run,
                                        save_run)
 from dc_lesson.data.rollout import episode_seeds
+from dc_lesson.nn import fast as _fast
 from dc_lesson.nn.policies import GaussianPolicy, ValueNetwork
 
 
@@ -229,23 +231,32 @@ def collect_batch(envs: EnvBatch, policy: GaussianPolicy, value_fn: ValueNetwork
     actions, logprobs = torch.zeros(T, N, act_dim), torch.zeros(T, N)
     rewards, dones = torch.zeros(T, N), torch.zeros(T, N, dtype=torch.bool)
     finished: list[float] = []
+    sampler = _fast.GaussianSampler(policy) if _fast.enabled() else None
     with torch.no_grad():
         for t in range(T):
             obs[t] = torch.from_numpy(envs.obs)
             # Store the raw sample and its log-prob; the environment applies it clipped.
-            actions[t] = policy.sample(obs[t], generator)
-            logprobs[t] = policy.log_prob(obs[t], actions[t])
-            o, r, d, f = envs.step(actions[t].numpy())
+            with _timing.phase("policy"):
+                if sampler is not None:   # NumPy forward, the same noise (dc_lesson.nn.fast)
+                    a, lp = sampler(envs.obs, generator)
+                    actions[t], logprobs[t] = torch.from_numpy(a), torch.from_numpy(lp)
+                else:
+                    actions[t] = policy.sample(obs[t], generator)
+                    logprobs[t] = policy.log_prob(obs[t], actions[t])
+            with _timing.phase("env"):
+                o, r, d, f = envs.step(actions[t].numpy())
             next_obs[t], rewards[t], dones[t] = (torch.from_numpy(o), torch.from_numpy(r),
                                                  torch.from_numpy(d))
             finished += f
         # Values in two batched passes rather than one per step.
-        values, next_values = value_fn(obs), value_fn(next_obs)
+        with _timing.phase("value"):
+            values, next_values = value_fn(obs), value_fn(next_obs)
     return Batch(obs, actions, logprobs, rewards, next_obs, dones, values, next_values, finished)
 
 
 # -- 3. advantages -------------------------------------------------------------------------------
 
+@_timing.timed("gae")
 def compute_gae(rewards: torch.Tensor, values: torch.Tensor, next_values: torch.Tensor,
                 dones: torch.Tensor, gamma: float, gae_lambda: float):
     """Generalised advantage estimation over (T, N) tensors: returns (advantages, targets).
@@ -304,6 +315,7 @@ def explained_variance(predictions: torch.Tensor, targets: torch.Tensor) -> floa
     return float("nan") if var == 0 else float(1 - (targets - predictions).var() / var)
 
 
+@_timing.timed("ppo_update")
 def ppo_update(policy: GaussianPolicy, value_fn: ValueNetwork, optimizer: torch.optim.Optimizer,
                batch: Batch, config: PPOConfig,
                generator: torch.Generator | None = None,
@@ -349,8 +361,8 @@ def ppo_update(policy: GaussianPolicy, value_fn: ValueNetwork, optimizer: torch.
             loss.backward()
             # Clip each network on its own: the value loss, with targets up to 1 / (1 - gamma),
             # would otherwise take the whole norm and shrink the policy's step.
-            gn_pi = torch.nn.utils.clip_grad_norm_(policy.parameters(), config.max_grad_norm)
-            gn_v = torch.nn.utils.clip_grad_norm_(value_fn.parameters(), config.max_grad_norm)
+            gn_pi = _fast.clip_grad_norm_(policy.parameters(), config.max_grad_norm)
+            gn_v = _fast.clip_grad_norm_(value_fn.parameters(), config.max_grad_norm)
             optimizer.step()
 
             for k, v in (("policy_loss", pg_loss), ("value_loss", v_loss), ("entropy", entropy),
@@ -440,7 +452,7 @@ def train(task: str, demos=None, config: PPOConfig = PPOConfig(), *,
             policy = GaussianPolicy(spec.obs_dim, spec.act_dim, config.hidden,
                                     log_std_init=config.log_std_init, norm_obs=config.norm_obs)
         value_fn = ValueNetwork(spec.obs_dim, config.hidden, norm_obs=config.norm_obs)
-    optimizer = torch.optim.AdamW([*policy.parameters(), *value_fn.parameters()],
+    optimizer = _fast.adamw([*policy.parameters(), *value_fn.parameters()],
                                   lr=config.lr, eps=1e-5, weight_decay=config.weight_decay)
     generator = torch.Generator().manual_seed(sample_seed)
     envs = EnvBatch(task, config.n_envs, env_seed, config.episode_steps)

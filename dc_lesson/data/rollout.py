@@ -75,6 +75,8 @@ def as_batch_policy(policy: Policy) -> Callable[[np.ndarray], np.ndarray]:
     if not isinstance(policy, torch.nn.Module):
         return policy
     module = policy
+    if hasattr(module, "act_numpy"):   # a policy with its own NumPy path (nn.GaussianPolicy)
+        return module.act_numpy
     call = getattr(module, "act", module)
 
     def numpy_policy(obs: np.ndarray) -> np.ndarray:

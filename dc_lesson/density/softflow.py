@@ -137,6 +137,7 @@ import torch
 from torch import nn
 from torchdiffeq import odeint
 
+from dc_lesson import timing as _timing
 from dc_lesson.density import _trace
 from dc_lesson.nn.checkpoint import PolicyFileError, atomic_torch_save, load_checked
 
@@ -594,6 +595,7 @@ def fit(states, config: SoftFlowConfig = SoftFlowConfig(), progress: bool = True
     return fit_more(flow, x, config, progress=progress, callback=callback)
 
 
+@_timing.timed("flow_fit")
 def fit_more(flow: SoftFlow, states, config: SoftFlowConfig | None = None,
              iterations: int | None = None, progress: bool = True,
              callback: Callable | None = None,

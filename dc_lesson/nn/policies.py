@@ -132,7 +132,11 @@ class GaussianPolicy(_Normalised):
 
     def distribution(self, obs: torch.Tensor) -> torch.distributions.Normal:
         mean = self(obs)
-        return torch.distributions.Normal(mean, self.log_std.exp().expand_as(mean))
+        # Argument validation (finite mean, positive scale: true by construction here) costs
+        # more than the rest of a minibatch step on small nets; skipped on the fast path.
+        from dc_lesson.nn import fast
+        return torch.distributions.Normal(mean, self.log_std.exp().expand_as(mean),
+                                          validate_args=not fast.enabled())
 
     def log_prob(self, obs: torch.Tensor, act: torch.Tensor) -> torch.Tensor:
         """log pi(act | obs), summed over the action dimensions: shape (B,)."""
@@ -152,6 +156,15 @@ class GaussianPolicy(_Normalised):
         """
         a = self(obs) if deterministic else self.sample(obs, generator)
         return a.clamp(ACTION_LOW, ACTION_HIGH)
+
+    def act_numpy(self, obs: np.ndarray) -> np.ndarray:
+        """``act(obs)`` (the clipped mean) for a NumPy batch, as rollouts call it: through
+        :mod:`dc_lesson.nn.fast` unless that is switched off."""
+        from dc_lesson.nn import fast
+        if fast.enabled():
+            return np.clip(fast.snapshot(self)(obs), ACTION_LOW, ACTION_HIGH)
+        with torch.no_grad():
+            return self.act(torch.as_tensor(obs, dtype=torch.float32)).numpy()
 
 
 class ValueNetwork(_Normalised):
@@ -180,6 +193,10 @@ class StochasticPolicy:
         self.generator = torch.Generator().manual_seed(int(seed))
 
     def __call__(self, obs: np.ndarray) -> np.ndarray:
+        from dc_lesson.nn import fast
+        if fast.enabled():   # the same noise, the mean in NumPy (dc_lesson.nn.fast)
+            a, _ = fast.snapshot(self.policy, fast.GaussianSampler)(obs, self.generator)
+            return np.clip(a, ACTION_LOW, ACTION_HIGH)
         with torch.no_grad():
             a = self.policy.act(torch.as_tensor(obs, dtype=torch.float32), deterministic=False,
                                 generator=self.generator)
