@@ -82,7 +82,8 @@ def cmd_demos(args) -> int:
     from dc_lesson.experts import demos
     for name in args.task:
         entry = demos.make_demos(name, command=_command_line(), stage=args.stage,
-                                 threads=args.threads, first=args.first)
+                                 threads=args.threads, first=args.first,
+                                 variant=args.variant)
         if entry is None:
             print(f"{name}: stage {args.stage!r} complete in data/demos/partial/; finish with: "
                   f"dc-lesson demos --task {name}")
@@ -248,6 +249,9 @@ def build_parser() -> argparse.ArgumentParser:
                         "in a file of their own (a second eval process takes the end)")
     s.add_argument("--threads", type=int, default=None,
                    help="planner experts: mujoco.rollout threads (results do not depend on it)")
+    s.add_argument("--variant", default=None,
+                   help="another expert of the task: 'coin' (reacher2, reacher4, halfcheetah2: "
+                        "the mode drawn by a hidden coin per episode)")
     s.set_defaults(func=cmd_demos)
     s = sub.add_parser("expert", help="train or evaluate a task's expert")
     s.add_argument("what", choices=["train", "eval"])

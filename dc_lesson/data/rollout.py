@@ -87,10 +87,9 @@ def as_batch_policy(policy: Policy) -> Callable[[np.ndarray], np.ndarray]:
 
 
 def trajectory_mode(task: _tasks.PortTask, mode_features: np.ndarray) -> int:
-    """The mode an episode took: the most frequent per-step mode over its second half
-    (the first half is spent getting there)."""
-    labels = task.classify_mode(mode_features[len(mode_features) // 2:])
-    return int(np.bincount(labels.ravel()).argmax())
+    """The mode an episode took: where it arrived and stayed (``task.episode_mode``), or
+    ``tasks.NO_MODE`` (-1) when it reached none."""
+    return int(task.episode_mode(mode_features))
 
 
 def collect(task: str, policy: Policy, n_episodes: int, seed: int = 0, *,

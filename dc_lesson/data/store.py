@@ -30,8 +30,21 @@ class DemoError(ValueError):
     """A demonstration file that is missing, corrupted, or not what it claims to be."""
 
 
-def regenerate_hint(task: str) -> str:
-    return f"regenerate it with: dc-lesson demos --task {task}"
+def demo_set(task: str, variant: str | None = None) -> str:
+    """The manifest's name of a set of demonstrations: the task, or ``TASK-VARIANT`` for an
+    expert variant (``reacher4-coin``: the hidden-coin expert of chapter 04)."""
+    _tasks.check_name(task)
+    if variant is None:
+        return task
+    if not (isinstance(variant, str) and variant.isalnum()):
+        raise DemoError(f"a demonstration variant is a short name of letters and digits, got "
+                        f"{variant!r}")
+    return f"{task}-{variant}"
+
+
+def regenerate_hint(task: str, variant: str | None = None) -> str:
+    return (f"regenerate it with: dc-lesson demos --task {task}"
+            + (f" --variant {variant}" if variant else ""))
 
 
 def sha256(path) -> str:
@@ -120,25 +133,26 @@ def read_manifest(directory=None) -> dict:
     return manifest
 
 
-def manifest_entry(task: str, directory=None) -> dict:
-    _tasks.check_name(task)
-    entry = read_manifest(directory)["tasks"].get(task)
+def manifest_entry(task: str, directory=None, variant: str | None = None) -> dict:
+    name = demo_set(task, variant)
+    entry = read_manifest(directory)["tasks"].get(name)
     if entry is None:
-        raise DemoError(f"the manifest has no demonstrations of {task!r}; "
-                        f"{regenerate_hint(task)}")
+        raise DemoError(f"the manifest has no demonstrations {name!r}; "
+                        f"{regenerate_hint(task, variant)}")
     return entry
 
 
 def load_demos(task: str, n_trajectories: int | None = None, seed: int | None = None,
-               directory=None) -> Demonstrations:
+               directory=None, variant: str | None = None) -> Demonstrations:
     """The expert demonstrations of ``task``, checked against the manifest's sha256.
 
     ``n_trajectories`` takes a subset: with ``seed=None`` the first n (so the paper's subsets
     of 4, 11, 18 and 25 are nested), otherwise n drawn without replacement by that seed.
+    ``variant`` names another expert's demonstrations of the task (``"coin"``).
     """
-    entry = manifest_entry(task, directory)
+    entry = manifest_entry(task, directory, variant)
     path = pathlib.Path(directory or DEMOS_DIR) / entry["file"]
-    hint = regenerate_hint(task)
+    hint = regenerate_hint(task, variant)
     if not path.exists():
         raise DemoError(f"{path} is missing; {hint}")
     digest = sha256(path)

@@ -44,7 +44,8 @@ class Trajectory:
         mode_features: (T+1, k) float32, the task's mode feature at each observation.
         initial_state: (S,) float64, MuJoCo's integration state at the start.
         seed: the seed the episode's initial state was drawn with.
-        mode: index of the behaviour mode the episode took (0 for single-mode tasks).
+        mode: index of the behaviour mode the episode took (0 for single-mode tasks;
+            ``tasks.NO_MODE`` = -1 for an episode of a multi-mode task that reached none).
     """
 
     task: str
@@ -76,9 +77,10 @@ class Trajectory:
         if T == 0:
             raise TrajectoryError("a trajectory needs at least one action")
         n_modes = max(1, len(spec.modes))
-        if not 0 <= int(self.mode) < n_modes:
+        lowest = _tasks.NO_MODE if spec.multimodal else 0   # -1: arrived at no mode
+        if not lowest <= int(self.mode) < n_modes:
             raise TrajectoryError(f"mode {self.mode} out of range for {self.task} "
-                                  f"({n_modes} modes)")
+                                  f"({n_modes} modes, or {_tasks.NO_MODE} for none)")
 
     def __len__(self) -> int:
         return len(self.actions)

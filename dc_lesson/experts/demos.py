@@ -126,7 +126,8 @@ STAGES = ("demos", "eval")
 
 def make_demos(task: str, command: str = "", directory=None, n_demos: int = N_DEMOS,
                n_eval: int = N_EVAL, progress: bool = True, stage: str | None = None,
-               threads: int | None = None, first: int | None = None) -> dict | None:
+               threads: int | None = None, first: int | None = None,
+               variant: str | None = None) -> dict | None:
     """Generates, stores and registers the demonstrations of ``task``; returns its entry.
 
     For a planner expert the episodes can be collected by processes side by side, each
@@ -148,7 +149,8 @@ def make_demos(task: str, command: str = "", directory=None, n_demos: int = N_DE
         raise ValueError(f"unknown stage {stage!r}; the stages are: {', '.join(STAGES)}")
     directory = data.DEMOS_DIR if directory is None else directory
     directory = pathlib.Path(directory)
-    expert, info = load_expert(task)
+    expert, info = load_expert(task, variant)
+    name = data.demo_set(task, variant)
     t0 = time.time()
     planner = info.get("kind") == "planner"
     if stage is not None and not planner:
@@ -198,11 +200,12 @@ def make_demos(task: str, command: str = "", directory=None, n_demos: int = N_DE
         eval_note = f"{n_eval} episodes beside the demonstrations (seed {EXPERT_EVAL_SEED})"
     random_eval = rollout.collect(task, rollout.RandomPolicy(task, seed=RANDOM_EVAL_SEED), n_eval,
                                   seed=RANDOM_EVAL_SEED, progress=progress)
-    path = directory / f"{task}.npz"
+    path = directory / f"{name}.npz"
     digest = data.save_demos(demos, path)
     spec = _tasks.spec(task)
     entry = {
-        "file": path.name, "sha256": digest, "task": task, "n_trajectories": len(demos),
+        "file": path.name, "sha256": digest, "task": task, "variant": variant,
+        "n_trajectories": len(demos),
         "horizon": spec.horizon, "obs_dim": spec.obs_dim, "act_dim": spec.act_dim,
         "mode_feature": list(spec.mode_feature_names),
         "expert": info,
@@ -214,7 +217,8 @@ def make_demos(task: str, command: str = "", directory=None, n_demos: int = N_DE
         "expert_mode_shares": mode_shares(task, expert_eval),
         "seeds": {"demos": DEMO_SEED, "expert_eval": EXPERT_EVAL_SEED,
                   "random_eval": RANDOM_EVAL_SEED, "random_policy": RANDOM_EVAL_SEED},
-        "command": command or f"dc-lesson demos --task {task}",
+        "command": command or (f"dc-lesson demos --task {task}"
+                               + (f" --variant {variant}" if variant else "")),
         "revision": git_revision(),
         "time": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
         "wall_seconds": round(time.time() - t0, 1),
@@ -222,9 +226,10 @@ def make_demos(task: str, command: str = "", directory=None, n_demos: int = N_DE
     with _locked(directory):
         manifest = data.read_manifest(directory)
         manifest["format"] = data.DEMO_FORMAT
-        manifest["tasks"][task] = entry
-        manifest["tasks"] = dict(sorted(manifest["tasks"].items(),
-                                        key=lambda kv: _tasks.NAMES.index(kv[0])))
+        manifest["tasks"][name] = entry
+        manifest["tasks"] = dict(sorted(
+            manifest["tasks"].items(),
+            key=lambda kv: (_tasks.NAMES.index(kv[1].get("task", kv[0])), kv[0])))
         atomic_write_text(directory / "manifest.json", json.dumps(manifest, indent=1) + "\n")
     for leftover in (directory / "partial").glob(f"{task}-*"):
         leftover.unlink()      # the finished file replaces the partial ones

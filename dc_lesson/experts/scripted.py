@@ -304,17 +304,27 @@ class ReacherExpert:
             for b, c in enumerate(self.chosen)])
 
 
-def expert_for(task: str):
-    """The default scripted expert of ``task`` (reachers: a coin flip picks the target)."""
+def expert_for(task: str, variant: str | None = None):
+    """The scripted expert of ``task``.  Reachers: the target nearest to the fingertip at the
+    start (a deterministic function of the first observation, so a Markov policy can follow
+    it); ``variant="coin"``: a hidden coin flip per episode picks the target."""
+    if variant not in (None, "coin") or (variant == "coin" and task not in ("reacher2",
+                                                                          "reacher4")):
+        raise ValueError(f"{task} has no expert variant {variant!r}; the variants are: "
+                         f"{', '.join(VARIANTS.get(task, ())) or 'none'}")
     if task == "cartpole":
         return CartpoleLQR()
     if task in ("reacher1", "reacher2", "reacher4"):
-        return ReacherExpert(int(task[len("reacher"):]), mode_choice="coin")
+        return ReacherExpert(int(task[len("reacher"):]),
+                             mode_choice="coin" if variant == "coin" else "nearest")
     raise ValueError(f"no scripted expert for task {task!r}; scripted experts exist for: "
                      f"{', '.join(SCRIPTED_TASKS)}")
 
 
-def describe(task: str) -> dict:
+VARIANTS = {"reacher2": ("coin",), "reacher4": ("coin",)}
+
+
+def describe(task: str, variant: str | None = None) -> dict:
     """What the scripted expert of ``task`` is, for the demonstrations' manifest."""
     if task == "cartpole":
         return {"kind": "scripted", "name": "CartpoleLQR",
@@ -326,12 +336,16 @@ def describe(task: str) -> dict:
                 "method": "two-link inverse kinematics to the chosen target, PD control on "
                           "the joint angles", "gains": {"kp": list(map(float, ReacherExpert.KP)),
                                                         "kd": list(map(float, ReacherExpert.KD))},
+                "variant": variant,
                 "mode_choice": None if task == "reacher1" else
                                "coin: the target is drawn uniformly per episode from the "
-                               "episode seed, independent of the initial state"}
+                               "episode seed, independent of the initial state"
+                               if variant == "coin" else
+                               "nearest: the target nearest to the fingertip in the first "
+                               "observation (a deterministic function of the start state)"}
     raise ValueError(f"no scripted expert for task {task!r}")
 
 
-__all__ = ["SCRIPTED_TASKS", "describe", "MODE_CHOICES", "CartpoleLQR", "ReacherExpert", "expert_for",
+__all__ = ["SCRIPTED_TASKS", "VARIANTS", "describe", "MODE_CHOICES", "CartpoleLQR", "ReacherExpert", "expert_for",
            "linearise", "solve_dlqr", "two_link_ik", "joint_goal", "coin_flip_targets",
            "nearest_targets", "pd_action", "arm_geometry", "wrap_angle"]

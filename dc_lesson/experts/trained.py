@@ -194,6 +194,35 @@ class CoinFlipMixture:
         return out
 
 
+class StartStateSwitch:
+    """One of two experts per episode, chosen by the episode's first observation: expert 0
+    when ``obs[feature] >= threshold`` in it, else expert 1.
+
+    A deterministic function of the observed start state, so one Markov policy can follow it:
+    the choice is written in the state an episode starts from.  The threshold is the median
+    of that feature over start states, so the two experts take about half the episodes each.
+    """
+
+    def __init__(self, experts, feature: int, threshold: float):
+        self.experts, self.feature, self.threshold = list(experts), int(feature), threshold
+        self.chosen = None
+
+    def reset(self, seeds) -> None:
+        self.chosen = None          # decided by the first observation of the new episodes
+
+    def __call__(self, obs: np.ndarray) -> np.ndarray:
+        if self.chosen is None or len(self.chosen) != len(obs):
+            self.chosen = np.where(obs[:, self.feature] >= self.threshold, 0, 1)
+        return CoinFlipMixture.__call__(self, obs)
+
+
+# halfcheetah2's realizable expert: forward when the back thigh's angle (observation 2) starts
+# at or above its median over start states (-0.0352 rad over seeds 0..1999, measured with
+# tasks.make("halfcheetah2").reset(seed=s)), else backward.
+HALFCHEETAH2_SWITCH = {"feature": 2, "feature_name": "bthigh angle (observation 2)",
+                       "threshold": -0.0352}
+
+
 def load_unit(unit: str, directory=None):
     path = unit_paths(unit, directory)["policy"]
     if not path.exists():
@@ -203,19 +232,35 @@ def load_unit(unit: str, directory=None):
     return load_policy(path)
 
 
-def load_trained_expert(task: str, directory=None):
-    """The expert of a locomotion task as a batch policy, and its description."""
+def load_trained_expert(task: str, directory=None, variant: str | None = None):
+    """The expert of a locomotion task as a batch policy, and its description.
+
+    ``halfcheetah2``: the forward and the backward runner, switched by the start state
+    (:class:`StartStateSwitch`); ``variant="coin"``: by a hidden coin per episode."""
+    if variant is not None and (task, variant) != ("halfcheetah2", "coin"):
+        raise ValueError(f"{task} has no expert variant {variant!r}"
+                         + ("; its variants are: coin" if task == "halfcheetah2" else ""))
     if task not in EXPERT_UNITS:
         raise ValueError(f"no trained expert for {task!r}; trained experts exist for: "
                          f"{', '.join(EXPERT_UNITS)}")
     nets = [load_unit(u, directory) for u in EXPERT_UNITS[task]]
-    info = {"kind": "trained", "name": "PPO" if len(nets) == 1 else "PPO coin-flip mixture",
+    coin = variant == "coin"
+    info = {"kind": "trained",
+            "name": ("PPO" if len(nets) == 1 else "PPO coin-flip mixture" if coin
+                     else "PPO start-state switch"),
             "units": [dict(net.meta, file=f"data/experts/{u}.pt")
                       for u, net in zip(EXPERT_UNITS[task], nets)],
-            "acts_with": "the policy's mean action",
+            "acts_with": "the policy's mean action", "variant": variant,
             "mode_choice": (None if len(nets) == 1 else
                             "coin: forward or backward runner drawn per episode from the "
-                            "episode seed, independent of the initial state")}
+                            "episode seed, independent of the initial state" if coin else
+                            f"start state: forward when {HALFCHEETAH2_SWITCH['feature_name']} "
+                            f">= {HALFCHEETAH2_SWITCH['threshold']} in the first observation, "
+                            f"else backward")}
     if len(nets) == 1:
         return DeterministicPolicy(nets[0]), info
-    return CoinFlipMixture([DeterministicPolicy(n) for n in nets]), info
+    experts = [DeterministicPolicy(n) for n in nets]
+    if coin:
+        return CoinFlipMixture(experts), info
+    return StartStateSwitch(experts, HALFCHEETAH2_SWITCH["feature"],
+                            HALFCHEETAH2_SWITCH["threshold"]), info

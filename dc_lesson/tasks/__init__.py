@@ -36,7 +36,7 @@ from dm_control.suite import humanoid as suite_humanoid
 from dm_control.suite import walker as suite_walker
 
 from dc_lesson.tasks import ant, cartpole, cheetah, hopper, humanoid, reacher, walker
-from dc_lesson.tasks.base import (ActionError, PhysicsDiverged, PortTask, TaskEnv, TaskSpec,
+from dc_lesson.tasks.base import (NO_MODE, ActionError, PhysicsDiverged, PortTask, TaskEnv, TaskSpec,
                                   VecEnv)
 
 @dataclasses.dataclass(frozen=True)
@@ -160,6 +160,6 @@ def _register_gymnasium() -> None:
 
 _register_gymnasium()
 
-__all__ = ["NAMES", "SPECS", "ActionError", "PhysicsDiverged", "PortTask", "TaskEnv", "TaskSpec",
+__all__ = ["NAMES", "NO_MODE", "SPECS", "ActionError", "PhysicsDiverged", "PortTask", "TaskEnv", "TaskSpec",
            "UnknownTaskError", "VecEnv", "check_name", "gym_id", "load", "load_vec", "make", "spec",
            "spec_table"]

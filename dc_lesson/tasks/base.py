@@ -126,6 +126,15 @@ class PortTask(suite_base.Task):
         features = np.asarray(features)
         return np.zeros(features.shape[:-1], dtype=np.int64)
 
+    def episode_mode(self, mode_features: np.ndarray) -> int:
+        """The mode a whole episode took, from its (T+1, k) mode features: the index of the
+        mode it arrived at and stayed in, or :data:`NO_MODE` (-1) when it reached none.  A
+        single-mode task's episodes all take mode 0; multi-mode ports override this."""
+        return 0
+
+
+NO_MODE = -1   # an episode that arrived at no mode (the "none" class of mode shares)
+
 
 def name_id(model, kind: str, name: str) -> int:
     """Index of a named body / geom / sensor / joint; an error if the model lacks it."""

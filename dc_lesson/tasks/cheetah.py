@@ -15,9 +15,10 @@ import numpy as np
 from dm_control.suite import cheetah as suite_cheetah
 from dm_control.utils import rewards
 
-from dc_lesson.tasks.base import PortTask, TaskSpec, sensor_slice
+from dc_lesson.tasks.base import NO_MODE, PortTask, TaskSpec, sensor_slice
 
 _RUN_SPEED = suite_cheetah._RUN_SPEED  # 10 m/s
+ARRIVE_SPEED = 1.0   # m/s: an episode "runs" in a direction at a mean speed of at least this
 
 SPEC = TaskSpec(
     name="halfcheetah", paper_task="HalfCheetah-v2", base="suite cheetah, run task",
@@ -72,3 +73,10 @@ class RunEitherWay(Run):
     def classify_mode(self, features):
         # 0 = forward, 1 = backward, by the sign of the forward speed.
         return (np.asarray(features)[..., 0] < 0).astype(np.int64)
+
+    def episode_mode(self, mode_features):
+        """The direction the cheetah actually ran: forward (0) if its mean forward speed over
+        the second half is at least ``ARRIVE_SPEED``, backward (1) if at most minus that, else
+        ``NO_MODE`` (standing, rocking, or turning back and forth)."""
+        v = float(np.mean(np.asarray(mode_features)[len(mode_features) // 2:, 0]))
+        return 0 if v >= ARRIVE_SPEED else 1 if v <= -ARRIVE_SPEED else NO_MODE

@@ -30,10 +30,13 @@ from dm_control.suite import reacher as suite_reacher
 from dm_control.suite.utils import randomizers
 from dm_control.utils import rewards
 
-from dc_lesson.tasks.base import PortTask, TaskSpec, name_id
+from dc_lesson.tasks.base import NO_MODE, PortTask, TaskSpec, name_id
 
 TARGET_RADIUS = 0.16   # distance of each target from the shoulder (m); the reach is 0.24
 TARGET_SIZE = 0.03     # radius of a target sphere (m)
+FINGER_SIZE = 0.01     # radius of the fingertip sphere (dm_control's reacher.xml; a test checks)
+ARRIVE_RADIUS = TARGET_SIZE + FINGER_SIZE   # inside a target: where the reward pays 1
+STAY_FRACTION = 0.9    # an episode's mode: the target it is inside for 90% of its last quarter
 _COLOURS = {45: ("red", "0.85 0.15 0.15 1"), 135: ("green", "0.15 0.7 0.2 1"),
             225: ("blue", "0.15 0.35 0.9 1"), 315: ("yellow", "0.95 0.8 0.1 1")}
 ANGLES = {1: (45,), 2: (45, 225), 4: (45, 135, 225, 315)}
@@ -128,3 +131,15 @@ class ReachAny(PortTask):
         # Index of the nearest target to each fingertip position.
         f = np.asarray(features)[..., None, :2]
         return np.argmin(np.linalg.norm(f - self.targets, axis=-1), axis=-1)
+
+    def episode_mode(self, mode_features):
+        """The target the fingertip arrived at and stayed at: inside it (the reward's radius,
+        target + finger) in at least ``STAY_FRACTION`` of the last quarter's steps; else
+        ``NO_MODE``.  Hovering between targets, or reaching one and leaving, is no mode."""
+        if self.n_targets == 1:
+            return 0   # a single-mode task: every episode takes its one mode
+        f = np.asarray(mode_features)[-max(1, len(mode_features) // 4):, None, :2]
+        inside = np.linalg.norm(f - self.targets, axis=-1) <= ARRIVE_RADIUS   # (steps, K)
+        share = inside.mean(axis=0)
+        k = int(share.argmax())
+        return k if share[k] >= STAY_FRACTION else NO_MODE
