@@ -113,7 +113,7 @@ import torch
 
 from dc_lesson import progress as _progress
 from dc_lesson.algorithms import bc as _bc
-from dc_lesson.algorithms.base import TrainResult, check_inputs
+from dc_lesson.algorithms.base import TrainResult, check_inputs, checkpoint_fix
 from dc_lesson.density import softflow as _softflow
 from dc_lesson import tasks as _tasks
 from dc_lesson.data import Demonstrations
@@ -608,7 +608,8 @@ def _save_checkpoint(path, task, config, loop, it, learner, flow, scale, generat
 
 
 def _load_checkpoint(path, task, config, learner, generator, envs):
-    ckpt = load_checked(path, CHECKPOINT_FORMAT, CHECKPOINT_VERSION, "DC checkpoint")
+    ckpt = load_checked(path, CHECKPOINT_FORMAT, CHECKPOINT_VERSION, "DC checkpoint",
+                        checkpoint_fix(path))
     check_checkpoint(path, ckpt, task, json.loads(ckpt["config"]),
                      json.loads(config.to_json()), what="DC checkpoint")
     if json.loads(ckpt["policy_args"]) != learner.pi.config():

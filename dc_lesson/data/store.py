@@ -6,7 +6,6 @@ Every file is checked against the sha256 its manifest records before it is read,
 
 from __future__ import annotations
 
-import hashlib
 import io
 import json
 import pathlib
@@ -14,6 +13,7 @@ import pathlib
 import numpy as np
 
 from dc_lesson import storage as _storage
+from dc_lesson.storage import sha256
 from dc_lesson import tasks as _tasks
 from dc_lesson.data.types import Demonstrations, Trajectory, TrajectoryError
 
@@ -32,14 +32,6 @@ class DemoError(ValueError):
 
 def regenerate_hint(task: str) -> str:
     return f"regenerate it with: dc-lesson demos --task {task}"
-
-
-def sha256(path) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for block in iter(lambda: f.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()
 
 
 def save_demos(trajectories: list[Trajectory], path) -> str:
