@@ -114,6 +114,7 @@ import torch
 from dc_lesson import progress as _progress
 from dc_lesson.algorithms import bc as _bc
 from dc_lesson.algorithms.base import TrainResult, check_inputs, checkpoint_fix
+from dc_lesson.checks import check_fields
 from dc_lesson.density import softflow as _softflow
 from dc_lesson import tasks as _tasks
 from dc_lesson.data import Demonstrations
@@ -169,8 +170,13 @@ class DCConfig:
     seed: int = 0
 
     def __post_init__(self):
-        object.__setattr__(self, "flow_hidden", tuple(int(h) for h in self.flow_hidden))
-        object.__setattr__(self, "critic_hidden", tuple(int(h) for h in self.critic_hidden))
+        check_fields(self, positive=("loops", "iterations", "flow_states", "flow_iterations",
+                                     "flow_lr", "sigma_max", "rho", "bc_steps", "bc_batch_size",
+                                     "lr", "max_grad_norm", "n_envs", "n_steps", "ppo_epochs",
+                                     "ppo_minibatches", "clip_coef"),
+                     non_negative=("flow_refit_iterations", "weight_decay", "vf_coef",
+                                   "ent_coef", "seed"),
+                     fraction=("gamma", "gae_lambda"))
         for name, allowed in (("update", UPDATES), ("reward", REWARDS),
                               ("optimizer_state", OPTIMIZER_STATES)):
             if getattr(self, name) not in allowed:

@@ -138,6 +138,7 @@ from torch import nn
 from torchdiffeq import odeint
 
 from dc_lesson.density import _trace
+from dc_lesson.checks import check_fields
 from dc_lesson.nn.checkpoint import PolicyFileError, atomic_torch_save, load_checked
 
 EXACT_TRACE_MAX_DIM = 100   # "auto" uses the exact trace up to this state dimension
@@ -184,7 +185,11 @@ class SoftFlowConfig:
     seed: int = 0                # the one seed of the fit
 
     def __post_init__(self):
-        object.__setattr__(self, "hidden", tuple(int(h) for h in self.hidden))
+        check_fields(self, positive=("sigma_max", "std_floor", "lr", "batch_size",
+                                     "max_grad_norm", "step_size", "rtol", "atol",
+                                     "max_num_steps", "eval_step_size", "eval_rtol",
+                                     "eval_atol", "eval_quadrature"),
+                     non_negative=("weight_decay", "iterations", "seed"))
         _check_solver(self.solver, self.step_size)
         _check_solver(self.eval_solver, self.eval_step_size)
         if self.trace not in ("hutchinson", "exact"):
