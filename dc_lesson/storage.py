@@ -151,6 +151,36 @@ def atomic_write_bytes(path, data: bytes) -> None:
     atomic_write(path, lambda f: f.write(data))
 
 
+class OutputPathError(ValueError):
+    """An output path that cannot be written (a folder, a file in an unwritable folder, ...)."""
+
+
+def check_writable(path, folder: bool = False) -> pathlib.Path:
+    """Checks, before any compute, that ``path`` can be written: a file (or with ``folder``,
+    a folder) that is not the other kind, in a folder that exists or can be made and lets us
+    write.  Makes no file; returns the path.  Raises :class:`OutputPathError`."""
+    path = pathlib.Path(path).expanduser()
+    kind = "folder" if folder else "file"
+    if path.exists() and path.is_dir() != folder:
+        raise OutputPathError(f"the output {kind} {path} is a {'file' if folder else 'folder'}; "
+                              f"give a {kind} path")
+    if folder and path.is_dir():
+        target = path
+    else:
+        target = path.parent
+        while not target.exists() and target != target.parent:
+            target = target.parent   # the deepest existing folder: the rest will be made
+        if not target.is_dir():
+            raise OutputPathError(f"cannot write {path}: {target} is a file, not a folder")
+    if not os.access(target, os.W_OK | os.X_OK):
+        raise OutputPathError(f"cannot write {path}: no write permission in {target}; choose "
+                              f"another path")
+    if not folder and path.exists() and not os.access(path, os.W_OK) \
+            and not os.access(path.parent, os.W_OK):
+        raise OutputPathError(f"cannot overwrite {path}; choose another path")
+    return path
+
+
 def _standard(value):
     """``value`` with every NaN or infinity replaced by None (JSON's null), recursively."""
     if isinstance(value, float):

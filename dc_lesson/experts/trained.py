@@ -32,7 +32,7 @@ import numpy as np
 import torch
 
 from dc_lesson import tasks as _tasks
-from dc_lesson.nn.checkpoint import ModelFileError, checksum_path
+from dc_lesson.nn.checkpoint import ModelFileError, checksum_path, load_checked
 from dc_lesson.nn.policies import load_policy, save_policy
 from dc_lesson.algorithms.ppo import PPOConfig, train
 from dc_lesson import storage as _storage
@@ -108,6 +108,24 @@ def regenerate_hint(unit: str) -> str:
             f"--task {task}")
 
 
+def _check_resumable(unit: str, path, config: PPOConfig, total_steps) -> None:
+    """Refuses, before training, a checkpoint made with another configuration, saying how to
+    discard it (``--restart``) or resume it."""
+    from dc_lesson.algorithms import ppo as _ppo
+    ckpt = load_checked(path, _ppo.CHECKPOINT_FORMAT, _ppo.CHECKPOINT_VERSION,
+                        "PPO checkpoint", regenerate_hint(unit))
+    saved, now = _ppo._saved_config(ckpt), json.loads(config.to_json())
+    if saved != now:
+        diff = ", ".join(f"{k} {saved.get(k)!r} there, {now.get(k)!r} now"
+                         for k in sorted(saved.keys() | now.keys()) if saved.get(k) != now.get(k))
+        task = RECIPES[unit].task
+        steps = "" if total_steps is None else f" --steps {total_steps}"
+        raise ModelFileError(f"the checkpoint {path} of the {unit} expert was made with another "
+                             f"configuration ({diff}); to discard it and train from the first "
+                             f"update run: dc-lesson expert train --task {task}{steps} "
+                             f"--restart (or leave out --steps to resume it)")
+
+
 def train_unit(unit: str, total_steps: int | None = None, command: str = "",
                directory=None, progress: bool = True, restart: bool = False) -> dict:
     """Trains (or resumes training) one unit and writes its policy and metadata.
@@ -142,6 +160,8 @@ def train_unit(unit: str, total_steps: int | None = None, command: str = "",
             if p.exists():
                 p.unlink()
                 restarted = True
+    elif paths["checkpoint"].exists():
+        _check_resumable(unit, paths["checkpoint"], config, total_steps)
     paths["checkpoint"].parent.mkdir(parents=True, exist_ok=True)
     torch.set_num_threads(1)   # small networks: one thread is fastest and leaves a core free
     t0 = time.time()
