@@ -201,7 +201,9 @@ def dumps_standard(obj, **kwargs) -> str:
 
 
 def write_result(path, payload: dict, *, command: str, seeds) -> pathlib.Path:
-    """Writes ``payload`` with its provenance as standard JSON (NaN and inf as ``null``)."""
+    """Writes ``payload`` with its provenance as standard JSON: a NaN or infinity (a value that
+    was not measured, e.g. a log row of an update in which no episode ended) is written as
+    ``null``, which ``np.asarray(values, dtype=float)`` reads back as NaN."""
     path = pathlib.Path(path)
     record = {"command": command, "seeds": list(seeds), "budget": _budget.current().name,
               "revision": git_revision(),
