@@ -77,24 +77,22 @@ def _command_line() -> str:
 
 # -- argument types: a size of 0 or below is an error, never a request for the default ---------
 
-def positive_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be a whole number, got {text!r}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be at least 1, got {value}")
-    return value
+def _whole_number(minimum: int, what: str):
+    """An argparse type: a whole number of at least ``minimum``."""
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"must be a whole number, got {text!r}") from None
+        if value < minimum:
+            raise argparse.ArgumentTypeError(f"{what} {minimum}{' or more' if minimum == 0 else ''}"
+                                             f", got {value}")
+        return value
+    return parse
 
 
-def seed_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be a whole number, got {text!r}") from None
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"a seed must be 0 or more, got {value}")
-    return value
+positive_int = _whole_number(1, "must be at least")
+seed_int = _whole_number(0, "a seed must be")
 
 
 def positive_float(text: str) -> float:
@@ -324,7 +322,8 @@ def cmd_bench(args) -> int:
     elif args.what == "bc-drift":
         from dc_lesson.experiments import bc as bench_bc
         bench_bc.run_drift(args.tasks or bench_bc.available_tasks(),
-                           args.demos or (min(b.bc_demo_counts), max(b.bc_demo_counts)),
+                           (min(b.bc_demo_counts), max(b.bc_demo_counts)) if args.demos is None
+                           else args.demos,
                            b.bc_seeds[:3] if args.seeds is None else args.seeds,
                            min(20, b.bc_eval_episodes) if args.episodes is None
                            else args.episodes,
