@@ -45,6 +45,21 @@ def test_a_flipped_bit_in_an_expert_is_refused_with_the_file_and_fix(tmp_path, b
     assert "dc-lesson expert train --task hopper" in msg and "git checkout" in msg
 
 
+def test_every_one_of_300_single_bit_flips_is_refused(tmp_path):
+    """The issue's measurement: 238 of 300 flips used to load silently with changed weights."""
+    for name in ("hopper.pt", "hopper.pt.sha256"):
+        shutil.copy(EXPERTS / name, tmp_path / name)
+    copy = tmp_path / "hopper.pt"
+    good = copy.read_bytes()
+    rng = np.random.default_rng(0)
+    for bit in rng.choice(8 * len(good), 300, replace=False):
+        data = bytearray(good)
+        data[bit // 8] ^= 1 << (bit % 8)
+        copy.write_bytes(bytes(data))
+        with pytest.raises(ModelFileError, match="does not match its sha256"):
+            load_policy(copy)
+
+
 def test_a_file_without_sidecar_is_refused(tmp_path):
     path = save_policy(GaussianPolicy(3, 1), tmp_path / "p.pt")
     checkpoint.checksum_path(path).unlink()
