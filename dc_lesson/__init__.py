@@ -3,19 +3,23 @@
 The package is layered; a module imports only from its own layer or the ones above it in this
 list (``tests/test_layers.py`` checks it):
 
-* ``budget``, ``storage``, ``progress``: the smoke / lesson / paper presets; where the data
-  folder is and how files are written (atomic, with provenance); progress bars;
+* ``budget``, ``storage``, ``progress``, ``checks``: the smoke / lesson / paper presets; where
+  the data folder is and how files are written (atomic, with provenance); progress bars; the
+  field checks every configuration makes at construction;
 * ``tasks``: the ten dm_control task ports; ``tasks.load`` gives a dm_env environment,
   ``gymnasium.make("dc_lesson/NAME-v0")`` a Gymnasium one, ``tasks.make`` the fast engine;
 * ``data``: typed, validated trajectories, the demonstrations on disk (sha256-checked),
   collecting episodes (``data.rollout``), mode shares, converters to other libraries;
-* ``nn``: the Gaussian policy and value network, and the one checked way to save models;
-* ``density``: SoftFlow, a noise-conditioned continuous normalizing flow;
-* ``algorithms``: the learners (BC, PPO, GAIL, DC), one module each, one ``train`` interface
-  and the registry ``algorithms.ALGORITHMS``;
+* ``nn``: the Gaussian policy and value network, and the one checked way to save models
+  (``nn.checkpoint``: atomic, with a sha256 sidecar checked before loading);
+* ``density``: ``density.softflow``, SoftFlow, a noise-conditioned continuous normalizing flow;
+* ``algorithms``: the learners, one module each (``algorithms.bc``, ``algorithms.ppo``,
+  ``algorithms.gail``, ``algorithms.dc``), one ``train`` interface (``algorithms.base``) and
+  the registry ``algorithms.ALGORITHMS``;
 * ``experts``: the scripted, PPO-trained and planner experts, their floors, making the
   demonstrations;
-* ``evaluation``: EMD, KL and reverse KL, scaled return; one way to evaluate every learner;
+* ``evaluation``: ``evaluation.metrics`` (EMD, KL and reverse KL, scaled return) and
+  ``evaluation.evaluate`` (``evaluate_policy``, one way to evaluate every learner);
 * ``viz``: frames, videos and figures;
 * ``experiments``: the studies behind every stored result, and the paper's claims judged;
   ``perf``: throughput benchmarks;

@@ -1,39 +1,119 @@
-"""The ``dc-lesson`` command.
+"""The dc-lesson command: every study of the book, from the command line.
 
-    dc-lesson tour                 frames of the ten tasks, their specs and random returns,
-                                   then BC, GAIL and DC on reacher4 (the book's headline)
-    dc-lesson tasks                the spec table
-    dc-lesson expert train --task NAME   train (or resume) the expert of NAME with PPO
-                                   (a planner's: write its settings)
-    dc-lesson demos --task NAME    roll out the expert of NAME into data/demos/
-    dc-lesson train LEARNER --task NAME   one learner of the registry (bc, ppo, gail, dc) at
-                                   the current budget, evaluated; --save writes its policy
-    dc-lesson perf rollout         rollout throughput against raw MuJoCo stepping
-    dc-lesson perf softflow        SoftFlow's log_prob and training speed against a naive CNF
-    dc-lesson bench softflow-fit --out data/results/softflow_fit.json   what SoftFlow learns
-    dc-lesson bench bc --out data/results/bc_demos.json   BC against the number of demos
-    dc-lesson bench bc-drift --out data/results/bc_drift.json   BC's drift from the demos
-    dc-lesson bench dc --out data/results/dc_modes.json   BC and DC on the multi-mode tasks
-    dc-lesson bench dc-ablation --out data/results/dc_ablation.json   loops; averaging vs ADMM
-    dc-lesson bench dc-lr --out data/results/dc_lr.json   DC's final return per learning rate
-    dc-lesson bench gail --out data/results/gail_modes.json   BC and GAIL on the multi-mode tasks
-    dc-lesson bench gail-lr --out data/results/gail_lr.json   GAIL against the learning rate
+  dc-lesson tour                        the ten tasks (frames, sizes, random returns),
+                                        then BC, GAIL and DC on reacher4: the headline
+  dc-lesson tasks                       the table of task sizes and horizons
+  dc-lesson expert train --task NAME    train (or resume) the PPO expert of NAME
+                                        (a planner expert: write its settings)
+  dc-lesson expert eval --task NAME     measure the expert of NAME (--episodes N)
+  dc-lesson demos --task NAME           roll out the expert of NAME into data/demos/
+  dc-lesson train LEARNER --task NAME   train one learner (bc, ppo, gail, dc) at the
+                                        budget and evaluate it; --save writes its policy
+  dc-lesson perf WHAT                   speed benchmarks (dc-lesson perf -h lists them)
+  dc-lesson bench WHAT --out FILE       the studies behind the book's stored results
+                                        (dc-lesson bench -h describes each)
 
-Sizes follow ``DC_LESSON_BUDGET`` (smoke | lesson | paper); see ``dc_lesson.budget``.
+Sizes follow the budget: set DC_LESSON_BUDGET to smoke (seconds, numbers mean nothing),
+lesson (the default, minutes) or paper (the paper's sizes, hours). A wrong value, a missing
+or damaged file, or an output that cannot be written stops the command before any compute
+with one line saying what is wrong and how to fix it, and exit status 2.
 """
 
 from __future__ import annotations
 
 import argparse
+import math
+import os
 import pathlib
 import shlex
 import sys
 import time
 
+# What each benchmark studies and which options it reads; an option it does not read is
+# refused rather than silently ignored.
+BENCHES = {
+    "bc": ("BC's return against the number of demonstrations (the paper's Table I, BC rows)",
+           {"tasks", "demos", "seeds", "episodes", "epochs"}),
+    "bc-drift": ("how far BC's states drift from the demonstrations over an episode",
+                 {"tasks", "demos", "seeds", "episodes", "epochs"}),
+    "softflow-fit": ("what SoftFlow learns: its fit of each task's demonstration states",
+                     set()),
+    "gail": ("BC and GAIL on the multi-mode tasks: returns and mode coverage",
+             {"tasks", "seeds", "steps", "lr"}),
+    "gail-lr": ("GAIL's final return for each learning rate (the paper's Figure 4)",
+                {"tasks", "seeds", "steps"}),
+    "dc": ("BC and DC on the multi-mode tasks: returns and mode coverage (Table I)",
+           {"tasks"}),
+    "dc-ablation": ("DC with 1 to 4 loops, and averaging against consensus ADMM (Figure 3)",
+                    {"tasks"}),
+    "dc-lr": ("DC's final return for each learning rate (Figure 4)",
+              {"tasks", "seeds", "steps"}),
+}
+ONE_TASK = {"gail-lr", "dc-ablation", "dc-lr"}
+PERFS = {
+    "rollout": ("control steps per second of the batched task engine against raw MuJoCo",
+                {"tasks", "steps"}),
+    "softflow": ("SoftFlow's log-density and training speed against a naive CNF", set()),
+    "learners": ("BC, PPO, GAIL and DC per phase, on the path before issue 14 and today's",
+                 {"tasks"}),
+}
+BENCH_OPTIONS = {"tasks": "--tasks", "demos": "--demos", "seeds": "--seeds",
+                 "episodes": "--episodes", "epochs": "--epochs", "steps": "--steps",
+                 "lr": "--lr"}
+
+
+class UsageError(ValueError):
+    """A combination of options the command does not take."""
+
+
+class Parser(argparse.ArgumentParser):
+    """argparse with a one-line refusal: the error and where the help is (no usage dump)."""
+
+    def error(self, message):
+        self.exit(2, f"{self.prog}: error: {message} (see: {self.prog} -h)\n")
+
 
 def _command_line() -> str:
     return "dc-lesson " + " ".join(shlex.quote(a) for a in sys.argv[1:])
 
+
+# -- argument types: a size of 0 or below is an error, never a request for the default ---------
+
+def _whole_number(minimum: int, what: str):
+    """An argparse type: a whole number of at least ``minimum``."""
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"must be a whole number, got {text!r}") from None
+        if value < minimum:
+            raise argparse.ArgumentTypeError(f"{what} {minimum}{' or more' if minimum == 0 else ''}"
+                                             f", got {value}")
+        return value
+    return parse
+
+
+positive_int = _whole_number(1, "must be at least")
+seed_int = _whole_number(0, "a seed must be")
+
+
+def positive_float(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a number, got {text!r}") from None
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"must be a positive finite number, got {text}")
+    return value
+
+
+def _check_output(path, folder: bool = False):
+    """An output path is checked before any compute (it would be lost at the end otherwise)."""
+    from dc_lesson.storage import check_writable
+    return None if path is None else check_writable(path, folder=folder)
+
+
+# -- the commands -------------------------------------------------------------------------------
 
 def cmd_tasks(args) -> int:
     from dc_lesson import tasks
@@ -48,7 +128,12 @@ def cmd_tour(args) -> int:
     from dc_lesson import budget, tasks
     from dc_lesson.viz import plots
     from dc_lesson.experiments import tour
+    _check_output(args.out, folder=True)
+    _check_output(args.save)
     b = budget.current()
+    if not args.no_headline:
+        from dc_lesson import data
+        data.load_demos("reacher4")   # a damaged demonstration file stops the tour now
     out = pathlib.Path(args.out)
     t0 = time.time()
     names = list(tasks.NAMES)
@@ -67,9 +152,9 @@ def cmd_tour(args) -> int:
           f"in {time.time() - t0:.0f} s")
     if not args.no_headline:
         from dc_lesson.experiments import headline
-        print(f"\nThe book's headline: BC, GAIL and DC on reacher4 (budget {b.name}; "
-              f"--no-headline skips it)")
-        headline.run("reacher4", budget=b, out=out)
+        print(f"\nThe book's headline: BC, GAIL and DC on reacher4 (budget {b.name}, seed "
+              f"{args.seed}; --no-headline skips it)")
+        headline.run("reacher4", seed=args.seed, budget=b, out=out)
     if args.save:
         from dc_lesson.storage import write_result
         path = write_result(args.save, {"random_returns": stats}, command=_command_line(),
@@ -80,6 +165,8 @@ def cmd_tour(args) -> int:
 
 def cmd_demos(args) -> int:
     from dc_lesson.experts import demos
+    if args.first is not None and args.stage != "eval":
+        raise UsageError("--first applies to --stage eval only")
     for name in args.task:
         entry = demos.make_demos(name, command=_command_line(), stage=args.stage,
                                  threads=args.threads, first=args.first,
@@ -99,6 +186,8 @@ def cmd_demos(args) -> int:
 def cmd_expert(args) -> int:
     from dc_lesson.data import rollout
     from dc_lesson.experts import load_expert, planner, trained
+    if args.what == "eval" and (args.steps is not None or args.restart):
+        raise UsageError("--steps and --restart apply to expert train, not expert eval")
     for name in args.task:
         if args.what == "train":
             if name in planner.PLANNERS:
@@ -110,7 +199,11 @@ def cmd_expert(args) -> int:
             elif name in trained.EXPERT_UNITS:
                 for unit in trained.EXPERT_UNITS[name]:
                     meta = trained.train_unit(unit, total_steps=args.steps,
-                                              command=_command_line())
+                                              command=_command_line(), restart=args.restart)
+                    if meta.get("restarted"):
+                        print(f"{unit}: --restart discarded the checkpoint "
+                              f"{trained.unit_paths(unit)['checkpoint']} and trained from the "
+                              f"first update")
                     print(f"{unit}: {meta['steps']} steps, {meta['training_seconds']:.0f} s of "
                           f"training; saved {trained.unit_paths(unit)['policy']}")
             else:
@@ -124,8 +217,24 @@ def cmd_expert(args) -> int:
     return 0
 
 
+def _refuse_unused(what: str, table: dict, args, command: str) -> None:
+    used = table[what][1]
+    given = [BENCH_OPTIONS[k] for k in BENCH_OPTIONS
+             if getattr(args, k, None) is not None and k not in used]
+    if given:
+        raise UsageError(f"{command} {what} does not take {', '.join(given)}; it reads "
+                         f"{', '.join(BENCH_OPTIONS[k] for k in BENCH_OPTIONS if k in used) or 'only --out'}")
+    if what in ONE_TASK and args.tasks is not None and len(args.tasks) != 1:
+        raise UsageError(f"{command} {what} runs on one task; give one name to --tasks")
+    if args.tasks is not None and not args.tasks:
+        raise UsageError(f"--tasks needs at least one task name (leave it out for the "
+                         f"default tasks)")
+
+
 def cmd_perf(args) -> int:
     from dc_lesson import budget
+    _refuse_unused(args.what, PERFS, args, "perf")
+    _check_output(args.out)
     if args.what == "learners":
         from dc_lesson.perf import learners as perf_learners
         perf_learners.main(args.tasks or None, args.learners or None, repeats=args.repeats,
@@ -135,8 +244,8 @@ def cmd_perf(args) -> int:
         from dc_lesson.perf import softflow as perf_softflow
         return perf_softflow.main(["--save", args.out] if args.out else [])
     from dc_lesson.perf import rollout as perf_rollout
-    steps = args.steps or budget.current().bench_steps
-    perf_rollout.main(args.tasks or None, n_steps=steps, out=args.out, command=_command_line())
+    steps = budget.current().bench_steps if args.steps is None else args.steps
+    perf_rollout.main(args.tasks, n_steps=steps, out=args.out, command=_command_line())
     return 0
 
 
@@ -146,11 +255,26 @@ def cmd_train(args) -> int:
     from dc_lesson import algorithms, budget, data, evaluation
     from dc_lesson.nn import policies
     algo = algorithms.get(args.learner)
+    if args.demos is not None and not algo.uses_demos:
+        raise UsageError(f"{algo.name} learns from the task's reward, not from "
+                         f"demonstrations: leave out --demos")
+    if args.save:
+        for task in args.task:
+            try:
+                path = args.save.format(task=task, learner=algo.name)
+            except (KeyError, IndexError, ValueError):
+                raise UsageError(f"--save {args.save!r}: only {{task}} and {{learner}} can be "
+                                 f"filled in") from None
+            _check_output(path)
     b = budget.current()
     torch.set_num_threads(1)
+    demos_of = {}
+    for task in args.task:   # every task's demonstrations are checked before any training
+        if algo.uses_demos:
+            demos_of[task] = data.load_demos(task, n_trajectories=(
+                b.il_demos if args.demos is None else args.demos))
     for task in args.task:
-        demos = data.load_demos(task, n_trajectories=args.demos or b.il_demos) \
-            if algo.uses_demos else None
+        demos = demos_of.get(task)
         start = None
         if args.learner in ("gail", "dc"):   # the paper's protocol: from BC's warm start
             start = algorithms.bc.warm_start_policy(demos, args.seed,
@@ -172,152 +296,191 @@ def cmd_train(args) -> int:
 
 def cmd_bench(args) -> int:
     from dc_lesson import budget
+    _refuse_unused(args.what, BENCHES, args, "bench")
+    _check_output(args.out)
+    b = budget.current()
     if args.what == "softflow-fit":
         from dc_lesson.experiments import softflow as bench_softflow
-        from dc_lesson import data
-        try:
-            return bench_softflow.fit_main(args.out, command=_command_line())
-        except (data.DemoError, bench_softflow.FitBenchError) as e:
-            print(f"dc-lesson: {e}", file=sys.stderr)
-            return 2
+        return bench_softflow.fit_main(args.out, command=_command_line())
     if args.what == "bc":
         from dc_lesson.experiments import bc as bench_bc
-        from dc_lesson import data
-        try:
-            bench_bc.main(args.tasks or None, demo_counts=args.demos, seeds=args.seeds,
-                          eval_episodes=args.episodes, max_epochs=args.epochs, out=args.out,
-                          command=_command_line())
-        except (data.DemoError, bench_bc.BenchInputError) as e:
-            print(f"dc-lesson: {e}", file=sys.stderr)
-            return 2
+        bench_bc.main(args.tasks, demo_counts=args.demos, seeds=args.seeds,
+                      eval_episodes=args.episodes, max_epochs=args.epochs, out=args.out,
+                      command=_command_line())
     elif args.what in ("gail", "gail-lr"):
-        from dc_lesson.experiments import bc as bench_bc, gail as bench_gail
-        from dc_lesson import data
-        try:
-            bench_gail.main(args.what, tasks=args.tasks, seeds=args.seeds, steps=args.steps,
-                            lr=args.lr, out=args.out, command=_command_line())
-        except (data.DemoError, bench_bc.BenchInputError) as e:
-            print(f"dc-lesson: {e}", file=sys.stderr)
-            return 2
+        from dc_lesson.experiments import gail as bench_gail
+        bench_gail.main(args.what, tasks=args.tasks, seeds=args.seeds, steps=args.steps,
+                        lr=args.lr, out=args.out, command=_command_line())
     elif args.what in ("dc", "dc-ablation", "dc-lr"):
+        from dc_lesson import data
         from dc_lesson.experiments import dc as bench_dc
         if args.what == "dc":
-            bench_dc.run(args.tasks or bench_dc.TASKS, out=args.out, command=_command_line())
-        elif args.what == "dc-ablation":
-            bench_dc.run_ablation((args.tasks or ["reacher4"])[0], out=args.out,
-                                  command=_command_line())
+            names = args.tasks or list(bench_dc.TASKS)
         else:
-            bench_dc.run_lr((args.tasks or [bench_dc.LR_TASK])[0], seeds=args.seeds,
-                            steps=args.steps, out=args.out, command=_command_line())
+            names = args.tasks or [bench_dc.LR_TASK if args.what == "dc-lr" else "reacher4"]
+        for name in names:   # a damaged demonstration file stops the study before it starts
+            data.load_demos(name)
+        if args.what == "dc":
+            bench_dc.run(names, out=args.out, command=_command_line())
+        elif args.what == "dc-ablation":
+            bench_dc.run_ablation(names[0], out=args.out, command=_command_line())
+        else:
+            bench_dc.run_lr(names[0], seeds=args.seeds, steps=args.steps, out=args.out,
+                            command=_command_line())
     elif args.what == "bc-drift":
         from dc_lesson.experiments import bc as bench_bc
-        from dc_lesson import data
-        b = budget.current()
-        counts = args.demos or (min(b.bc_demo_counts), max(b.bc_demo_counts))
-        try:
-            bench_bc.run_drift(args.tasks or bench_bc.available_tasks(), counts,
-                               args.seeds or b.bc_seeds[:3],
-                               args.episodes or min(20, b.bc_eval_episodes),
-                               max_epochs=args.epochs or b.bc_max_epochs, out=args.out,
-                               command=_command_line())
-        except (data.DemoError, bench_bc.BenchInputError) as e:
-            print(f"dc-lesson: {e}", file=sys.stderr)
-            return 2
+        bench_bc.run_drift(args.tasks or bench_bc.available_tasks(),
+                           (min(b.bc_demo_counts), max(b.bc_demo_counts)) if args.demos is None
+                           else args.demos,
+                           b.bc_seeds[:3] if args.seeds is None else args.seeds,
+                           min(20, b.bc_eval_episodes) if args.episodes is None
+                           else args.episodes,
+                           max_epochs=b.bc_max_epochs if args.epochs is None else args.epochs,
+                           out=args.out, command=_command_line())
     return 0
 
 
+# -- the parser ---------------------------------------------------------------------------------
+
+def _choices_help(table: dict) -> str:
+    width = max(map(len, table)) + 2
+    return "\n".join(f"  {name:<{width}}{text}" for name, (text, _) in table.items())
+
+
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="dc-lesson", description=__doc__,
-                                formatter_class=argparse.RawDescriptionHelpFormatter)
-    sub = p.add_subparsers(dest="cmd", required=True)
-    s = sub.add_parser("tasks", help="list the task ports")
+    raw = argparse.RawDescriptionHelpFormatter
+    p = Parser(prog="dc-lesson", description=__doc__, formatter_class=raw)
+    sub = p.add_subparsers(dest="cmd", required=True, metavar="COMMAND")
+    s = sub.add_parser("tasks", help="the table of task sizes and horizons")
     s.set_defaults(func=cmd_tasks)
-    s = sub.add_parser("tour", help="frames, specs and random returns of the ten tasks")
-    s.add_argument("--out", default="outputs", help="folder for the figures")
-    s.add_argument("--seed", type=int, default=0)
-    s.add_argument("--save", default=None, help="also write the returns to this JSON file")
+    s = sub.add_parser("tour", help="the ten tasks, then BC, GAIL and DC on reacher4")
+    s.add_argument("--out", default="outputs", help="folder for the figures (default: outputs)")
+    s.add_argument("--seed", type=seed_int, default=0,
+                   help="seed of the random episodes and of the headline's runs (default: 0)")
+    s.add_argument("--save", default=None, help="also write the random returns to this JSON file")
     s.add_argument("--no-headline", action="store_true",
                    help="skip the closing BC / GAIL / DC comparison on reacher4")
     s.set_defaults(func=cmd_tour)
     s = sub.add_parser("demos", help="roll out a task's expert into data/demos/")
-    s.add_argument("--task", nargs="+", required=True)
+    s.add_argument("--task", nargs="+", required=True, help="one or more task names")
     s.add_argument("--stage", choices=["demos", "eval"], default=None,
-                   help="planner experts: collect only this stage's episodes (run the two "
-                        "stages as two processes side by side, then once without --stage)")
-    s.add_argument("--first", type=int, default=None,
+                   help="planner experts only (ant, walker, humanoid): collect only this "
+                        "stage's episodes; run the two stages as two processes side by side, "
+                        "then once without --stage to combine them")
+    s.add_argument("--first", type=positive_int, default=None,
                    help="with --stage eval: collect that stage's episodes from this one on, "
                         "in a file of their own (a second eval process takes the end)")
-    s.add_argument("--threads", type=int, default=None,
+    s.add_argument("--threads", type=positive_int, default=None,
                    help="planner experts: mujoco.rollout threads (results do not depend on it)")
     s.add_argument("--variant", default=None,
                    help="another expert of the task: 'coin' (reacher2, reacher4, halfcheetah2: "
                         "the mode drawn by a hidden coin per episode)")
     s.set_defaults(func=cmd_demos)
-    s = sub.add_parser("expert", help="train or evaluate a task's expert")
-    s.add_argument("what", choices=["train", "eval"])
-    s.add_argument("--task", nargs="+", required=True)
-    s.add_argument("--steps", type=int, default=None, help="override the recipe's total steps")
-    s.add_argument("--episodes", type=int, default=10, help="evaluation episodes")
+    s = sub.add_parser("expert", help="train or evaluate a task's expert",
+                       description="expert train: train (or resume from its checkpoint) the PPO "
+                                   "expert of a task, then evaluate it.\nexpert eval: "
+                                   "evaluate the expert of a task.", formatter_class=raw)
+    s.add_argument("what", choices=["train", "eval"], help="train or eval")
+    s.add_argument("--task", nargs="+", required=True, help="one or more task names")
+    s.add_argument("--steps", type=positive_int, default=None,
+                   help="train: total environment steps instead of the recipe's")
+    s.add_argument("--restart", action="store_true",
+                   help="train: discard the checkpoint (even a committed one made with another "
+                        "configuration) and train from the first update")
+    s.add_argument("--episodes", type=positive_int, default=10,
+                   help="evaluation episodes (default: 10)")
     s.set_defaults(func=cmd_expert)
-    s = sub.add_parser("train", help="train one learner of the registry on a task")
-    s.add_argument("learner", help="bc, ppo, gail or dc (dc_lesson.algorithms.ALGORITHMS)")
-    s.add_argument("--task", nargs="+", required=True)
-    s.add_argument("--demos", type=int, default=None,
+    s = sub.add_parser("train", help="train one learner (bc, ppo, gail, dc) on a task")
+    s.add_argument("learner", help="bc, ppo, gail or dc")
+    s.add_argument("--task", nargs="+", required=True, help="one or more task names")
+    s.add_argument("--demos", type=positive_int, default=None,
                    help="demonstrations to learn from (default: the budget's il_demos)")
-    s.add_argument("--seed", type=int, default=0)
+    s.add_argument("--seed", type=seed_int, default=0, help="the run's seed (default: 0)")
     s.add_argument("--save", default=None,
-                   help="write the policy here ({task} and {learner} are filled in)")
+                   help="write the policy here; {task} and {learner} are filled in")
     s.set_defaults(func=cmd_train)
-    s = sub.add_parser("perf", help="throughput benchmarks (speed ratios, no science)")
-    s.add_argument("what", choices=["rollout", "softflow", "learners"],
-                   help="rollout: our engine against raw MuJoCo and dm_control; softflow: "
-                        "SoftFlow's density and training against a naive CNF; learners: BC, "
-                        "PPO, GAIL and DC, per phase, before and after issue 14's changes")
-    s.add_argument("--tasks", nargs="*", default=None)
-    s.add_argument("--learners", nargs="*", default=None, help="learners: which (default all)")
-    s.add_argument("--repeats", type=int, default=2, help="learners: runs per path")
-    s.add_argument("--steps", type=int, default=None, help="rollout: control steps per task")
-    s.add_argument("--out", default=None, help="write the figures to this JSON file")
+    s = sub.add_parser("perf", help="speed benchmarks (ratios, no science)",
+                       description="Speed benchmarks:\n" + _choices_help(PERFS),
+                       formatter_class=raw)
+    s.add_argument("what", choices=list(PERFS), metavar="WHAT", help=", ".join(PERFS))
+    s.add_argument("--tasks", nargs="*", default=None, help="rollout: task names (default: all)")
+    s.add_argument("--steps", type=positive_int, default=None,
+                   help="rollout: control steps per task (default: the budget's bench_steps)")
+    s.add_argument("--out", default=None, help="also write the figures to this JSON file")
+    s.add_argument("--learners", nargs="*", default=None,
+                   help="learners: which learners (default: bc ppo gail dc)")
+    s.add_argument("--repeats", type=positive_int, default=2,
+                   help="learners: timed runs per path (default 2)")
     s.set_defaults(func=cmd_perf)
-    s = sub.add_parser("bench", help="the studies behind the book's stored results")
-    s.add_argument("what", choices=["bc", "bc-drift", "softflow-fit", "gail",
-                                    "gail-lr", "dc", "dc-ablation", "dc-lr"])
-    s.add_argument("--tasks", nargs="*", default=None)
-    s.add_argument("--steps", type=int, default=None, help="rollout: control steps per task; gail, gail-lr: "
-                   "environment interactions per run")
-    s.add_argument("--out", default=None, help="write the figures to this JSON file")
-    s.add_argument("--demos", type=int, nargs="+", default=None,
-                   help="bc: demonstration counts (default: the budget's)")
-    s.add_argument("--seeds", type=int, nargs="+", default=None,
-                   help="bc: training seeds (default: the budget's)")
-    s.add_argument("--episodes", type=int, default=None,
-                   help="bc: evaluation episodes per policy (default: the budget's)")
-    s.add_argument("--epochs", type=int, default=None,
-                   help="bc: maximum training epochs (default: the budget's)")
-    s.add_argument("--lr", type=float, default=None,
+    s = sub.add_parser("bench", help="the studies behind the book's stored results",
+                       description="The studies behind the book's stored results (sizes from "
+                                   "the budget unless given):\n" + _choices_help(BENCHES),
+                       formatter_class=raw)
+    s.add_argument("what", choices=list(BENCHES), metavar="WHAT", help=", ".join(BENCHES))
+    s.add_argument("--tasks", nargs="*", default=None,
+                   help="task names (default: each study's own; gail-lr, dc-ablation and "
+                        "dc-lr take one)")
+    s.add_argument("--steps", type=positive_int, default=None,
+                   help="gail, gail-lr, dc-lr: environment interactions per run")
+    s.add_argument("--out", default=None, help="write the result to this JSON file")
+    s.add_argument("--demos", type=positive_int, nargs="+", default=None,
+                   help="bc, bc-drift: demonstration counts (default: the budget's)")
+    s.add_argument("--seeds", type=seed_int, nargs="+", default=None,
+                   help="bc, bc-drift, gail, gail-lr, dc-lr: training seeds (default: the "
+                        "budget's)")
+    s.add_argument("--episodes", type=positive_int, default=None,
+                   help="bc, bc-drift: evaluation episodes per policy (default: the budget's)")
+    s.add_argument("--epochs", type=positive_int, default=None,
+                   help="bc, bc-drift: maximum training epochs (default: the budget's)")
+    s.add_argument("--lr", type=positive_float, default=None,
                    help="gail: one learning rate for the policy, critic and discriminator "
                         "(default: GAILConfig's)")
     s.set_defaults(func=cmd_bench)
     return p
 
 
-def _algorithms_errors():
-    from dc_lesson import algorithms, data
-    return (algorithms.UnknownAlgorithmError, algorithms.LearnerInputError, data.DemoError)
+# -- errors: the library raises, the command explains -------------------------------------------
+
+def _one_line(e: BaseException) -> str:
+    text = " ".join(str(e).split())
+    if isinstance(e, KeyError) and len(text) > 1 and text[0] == text[-1] == "'":
+        text = text[1:-1]   # KeyError quotes its message
+    return text or type(e).__name__
+
+
+def _user_errors() -> tuple:
+    """The library's errors about the user's input or files: each message names the fault
+    and the fix."""
+    from dc_lesson import algorithms, tasks
+    from dc_lesson.density.softflow import FlowTrainingError
+    return (ValueError,            # ConfigError, DemoError, ModelFileError, BudgetError, ...
+            TypeError,             # a wrong argument type, named by the check that saw it
+            OSError,               # FileNotFoundError (ExpertMissing), permissions, disk full
+            tasks.UnknownTaskError, algorithms.UnknownAlgorithmError,
+            FlowTrainingError, tasks.PhysicsDiverged)
 
 
 def main(argv=None) -> int:
     from dc_lesson import budget, tasks
-    args = build_parser().parse_args(argv)
+    args = build_parser().parse_args(argv)   # bad sizes end here: argparse's one line, exit 2
     try:
         budget.current()  # fail early on a wrong DC_LESSON_BUDGET
         for name in (getattr(args, "tasks", None) or []) + (getattr(args, "task", None) or []):
             tasks.check_name(name)
         return args.func(args)
-    except (budget.BudgetError, tasks.UnknownTaskError, FileNotFoundError,
-            *_algorithms_errors()) as e:
-        print(f"dc-lesson: {e}", file=sys.stderr)
-        return 2
+    except KeyboardInterrupt:
+        print("dc-lesson: interrupted (a resumable run continues from its checkpoint)",
+              file=sys.stderr)
+        return 130
+    except Exception as e:   # noqa: BLE001 - the command's one place to explain errors
+        if os.environ.get("DC_LESSON_DEBUG"):
+            raise
+        if isinstance(e, _user_errors()):
+            print(f"dc-lesson: {_one_line(e)}", file=sys.stderr)
+            return 2
+        print(f"dc-lesson: unexpected {type(e).__name__}: {_one_line(e)} (this is a bug; "
+              f"DC_LESSON_DEBUG=1 shows the traceback)", file=sys.stderr)
+        return 1
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -5,19 +5,26 @@
   ``_data`` entry, which in the repository is a link to the top-level ``data/`` folder and in a
   wheel is that folder's copy.  The environment variable ``DC_LESSON_DATA`` overrides it (a
   folder of your own, e.g. for a read-only install).
-* Writes are atomic (a temporary file, then a rename), so a crash never leaves half a file.
+* Writes are atomic (a temporary file ``.NAME.PID.XXXXXXXX.tmp``, then a rename), so a crash
+  never leaves half a file; a temporary file a killed writer left behind is removed by the next
+  write into the same folder (see :func:`remove_stale_temps`).
 * Result files under ``results/`` are JSON with the provenance every stored figure carries
-  (the command that made it, seeds, budget, git revision, time).
+  (the command that made it, seeds, budget, git revision, time).  The JSON is strictly
+  standard: a NaN or infinity (a run that recorded no value) is written as ``null``.
 """
 
 from __future__ import annotations
 
 import datetime
+import hashlib
 import json
+import math
 import os
 import pathlib
+import re
 import subprocess
-import tempfile
+import time
+import uuid
 
 from dc_lesson import budget as _budget
 
@@ -48,6 +55,92 @@ def git_revision() -> str:
         return "unknown"
 
 
+def sha256(path) -> str:
+    """The hex sha256 of a file's bytes."""
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+# Our temporary files: ".NAME.PID.XXXXXXXX.tmp" (the pid says whose; 8 hex digits make it
+# unique), and the older "NAME.XXXXXXXX.tmp" of tempfile.mkstemp (8 of [a-z0-9_]).
+_TEMP = re.compile(r"^\.(?P<name>.+)\.(?P<pid>\d+)\.[0-9a-f]{8}\.tmp$")
+_OLD_TEMP = re.compile(r"^(?P<name>[^.].*\.(json|npz|pt|ckpt|sha256))\.[a-z0-9_]{8}\.tmp$")
+STALE_SECONDS = 3600   # a temporary file this old is stale whoever wrote it (pids are reused)
+
+
+def temp_path(path) -> pathlib.Path:
+    """The temporary file an atomic write of ``path`` goes through (same folder, so the rename
+    is atomic)."""
+    path = pathlib.Path(path)
+    return path.with_name(f".{path.name}.{os.getpid()}.{uuid.uuid4().hex[:8]}.tmp")
+
+
+def _pid_alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except (PermissionError, OverflowError):
+        return True   # someone else's process (or a pid we cannot ask about): assume alive
+    return True
+
+
+def remove_stale_temps(folder, now: float | None = None) -> list[pathlib.Path]:
+    """Removes the temporary files of killed writes in ``folder``; returns those removed.
+
+    Only files named like our own temporaries are touched, and only if their writer's process
+    is gone (another live process may be writing right now) or they are older than
+    :data:`STALE_SECONDS`; the older mkstemp names carry no pid, so only age counts for them.
+    """
+    folder = pathlib.Path(folder)
+    now = time.time() if now is None else now
+    removed = []
+    try:
+        entries = list(os.scandir(folder))
+    except OSError:
+        return removed
+    for entry in entries:
+        m, old = _TEMP.match(entry.name), _OLD_TEMP.match(entry.name)
+        if not (m or old):
+            continue
+        try:
+            if not entry.is_file(follow_symlinks=False):
+                continue
+            age = now - entry.stat(follow_symlinks=False).st_mtime
+            pid = int(m["pid"]) if m else None
+            if age > STALE_SECONDS or (pid is not None and pid != os.getpid()
+                                       and not _pid_alive(pid)):
+                os.unlink(entry.path)
+                removed.append(pathlib.Path(entry.path))
+        except OSError:
+            continue   # removed meanwhile by another cleaner, or not ours to remove
+    return removed
+
+
+def atomic_write(path, write) -> pathlib.Path:
+    """Calls ``write(f)`` on a temporary file beside ``path``, syncs it, and renames it to
+    ``path``, so a crash never leaves half a file; first removes stale temporaries there."""
+    path = pathlib.Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    remove_stale_temps(path.parent)
+    tmp = temp_path(path)
+    try:
+        # A plain open (not mkstemp) so the file gets the usual permissions, not 0600.
+        with open(tmp, "xb") as f:
+            write(f)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        if tmp.exists():
+            tmp.unlink()
+        raise
+    return path
+
+
 def atomic_write_text(path, text: str) -> None:
     """Writes via a temporary file and a rename, so a crash never leaves half a file."""
     atomic_write_bytes(path, text.encode())
@@ -55,20 +148,56 @@ def atomic_write_text(path, text: str) -> None:
 
 def atomic_write_bytes(path, data: bytes) -> None:
     """Writes via a temporary file and a rename, so a crash never leaves half a file."""
-    path = pathlib.Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=path.name + ".", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as f:
-            f.write(data)
-            f.flush()
-            os.fsync(f.fileno())
-        os.chmod(tmp, 0o644)  # mkstemp makes files private; results are meant to be read
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+    atomic_write(path, lambda f: f.write(data))
+
+
+class OutputPathError(ValueError):
+    """An output path that cannot be written (a folder, a file in an unwritable folder, ...)."""
+
+
+def check_writable(path, folder: bool = False) -> pathlib.Path:
+    """Checks, before any compute, that ``path`` can be written: a file (or with ``folder``,
+    a folder) that is not the other kind, in a folder that exists or can be made and lets us
+    write.  Makes no file; returns the path.  Raises :class:`OutputPathError`."""
+    path = pathlib.Path(path).expanduser()
+    kind = "folder" if folder else "file"
+    if path.exists() and path.is_dir() != folder:
+        raise OutputPathError(f"the output {kind} {path} is a {'file' if folder else 'folder'}; "
+                              f"give a {kind} path")
+    if folder and path.is_dir():
+        target = path
+    else:
+        target = path.parent
+        while not target.exists() and target != target.parent:
+            target = target.parent   # the deepest existing folder: the rest will be made
+        if not target.is_dir():
+            raise OutputPathError(f"cannot write {path}: {target} is a file, not a folder")
+    if not os.access(target, os.W_OK | os.X_OK):
+        raise OutputPathError(f"cannot write {path}: no write permission in {target}; choose "
+                              f"another path")
+    if not folder and path.exists() and not os.access(path, os.W_OK) \
+            and not os.access(path.parent, os.W_OK):
+        raise OutputPathError(f"cannot overwrite {path}; choose another path")
+    return path
+
+
+def _standard(value):
+    """``value`` with every NaN or infinity replaced by None (JSON's null), recursively."""
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, dict):
+        return {k: _standard(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_standard(v) for v in value]
+    if hasattr(value, "tolist"):   # numpy scalars and arrays
+        return _standard(value.tolist())
+    return value
+
+
+def dumps_standard(obj, **kwargs) -> str:
+    """JSON that every parser reads: NaN and infinities become ``null`` (never the
+    non-standard ``NaN``), numpy values become plain numbers."""
+    return json.dumps(_standard(obj), allow_nan=False, **kwargs)
 
 
 class NotWritableError(OSError):
@@ -92,12 +221,15 @@ def check_writable(path) -> pathlib.Path:
 
 
 def write_result(path, payload: dict, *, command: str, seeds) -> pathlib.Path:
+    """Writes ``payload`` with its provenance as standard JSON: a NaN or infinity (a value that
+    was not measured, e.g. a log row of an update in which no episode ended) is written as
+    ``null``, which ``np.asarray(values, dtype=float)`` reads back as NaN."""
     path = pathlib.Path(path)
     record = {"command": command, "seeds": list(seeds), "budget": _budget.current().name,
               "revision": git_revision(),
               "time": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
               **payload}
-    atomic_write_text(path, json.dumps(record, indent=1, default=float) + "\n")
+    atomic_write_text(path, dumps_standard(record, indent=1) + "\n")
     return path
 
 

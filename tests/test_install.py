@@ -36,6 +36,7 @@ def test_the_wheel_carries_the_data(wheel):
         assert f"dc_lesson/_data/demos/{task}.npz" in names
     assert "dc_lesson/_data/demos/manifest.json" in names
     assert "dc_lesson/_data/experts/halfcheetah.pt" in names
+    assert "dc_lesson/_data/experts/halfcheetah.pt.sha256" in names   # its checksum travels too
 
 
 def test_demos_load_from_an_installed_wheel(wheel, tmp_path):

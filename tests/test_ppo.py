@@ -11,6 +11,7 @@ import pytest
 import torch
 
 from dc_lesson.algorithms import ppo
+from dc_lesson.nn.checkpoint import write_checksum
 from dc_lesson.nn.policies import (GaussianPolicy, PolicyFileError, StochasticPolicy, ValueNetwork,
                                 load_policy, save_policy)
 from dc_lesson.data.rollout import RandomPolicy, collect, returns
@@ -162,12 +163,17 @@ def test_save_and_load_policy(tmp_path):
     assert back.meta == {"task": "cartpole", "return": 999.0}
     obs = torch.randn(3, 5)
     assert torch.equal(pi.act(obs), back.act(obs))
-    assert list(tmp_path.iterdir()) == [path]   # no temporary file left behind
+    # no temporary file left behind: the policy and its checksum
+    assert sorted(tmp_path.iterdir()) == [path, path.with_name("pi.pt.sha256")]
 
     (tmp_path / "junk.pt").write_bytes(b"not a torch file")
+    with pytest.raises(PolicyFileError, match="junk.pt has no checksum file"):
+        load_policy(tmp_path / "junk.pt")
+    write_checksum(tmp_path / "junk.pt")   # past the checksum, torch refuses it
     with pytest.raises(PolicyFileError, match="junk.pt.*could not be read"):
         load_policy(tmp_path / "junk.pt")
     torch.save({"weights": torch.zeros(2)}, tmp_path / "foreign.pt")
+    write_checksum(tmp_path / "foreign.pt")
     with pytest.raises(PolicyFileError, match="foreign.pt is not a policy file"):
         load_policy(tmp_path / "foreign.pt")
     with pytest.raises(FileNotFoundError, match="missing.pt"):

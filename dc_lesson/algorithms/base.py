@@ -64,19 +64,26 @@ def check_inputs(task: str, demos=None, policy=None) -> None:
                 f"{task} has ({spec.obs_dim}, {spec.act_dim}): start from a policy of {task}")
 
 
+def checkpoint_fix(path) -> str:
+    """What to do about a checkpoint that cannot be resumed: start the run again."""
+    return (f"delete {path} to start the run from the beginning (for an expert: dc-lesson "
+            f"expert train --task NAME --restart)")
+
+
 def check_checkpoint(path, ckpt: dict, task: str, saved: dict, now: dict,
                      networks: dict | None = None, what: str = "checkpoint") -> None:
     """The checks every resumable run makes before loading: the task, the configuration
     (``saved`` against ``now``, both JSON-able dicts) and the shape of each network
     (``networks`` maps a name whose ``NAME_args`` the checkpoint holds to the network)."""
     if ckpt["task"] != task:
-        raise PolicyFileError(f"{what} {path} is of task {ckpt['task']!r}, not {task!r}")
+        raise PolicyFileError(f"{what} {path} is of task {ckpt['task']!r}, not {task!r}; "
+                              f"{checkpoint_fix(path)}")
     if saved != now:
         diff = {k: (saved.get(k), now.get(k)) for k in saved.keys() | now.keys()
                 if saved.get(k) != now.get(k)}
         raise PolicyFileError(f"{what} {path} was made with another configuration "
-                              f"(saved, now): {diff}; delete it (or restart) or use the "
-                              f"saved configuration")
+                              f"(saved, now): {diff}; use the saved configuration, or "
+                              f"{checkpoint_fix(path)}")
     for name, net in (networks or {}).items():
         if json.loads(ckpt[f"{name}_args"]) != net.config():
             raise PolicyFileError(f"{what} {path} holds a {name} network built as "
@@ -106,7 +113,7 @@ def load_run(path, fmt: str, version: int, what: str, *, task: str, saved_config
     """Restores a run written by :func:`save_run` in place; returns (update, log, the file's
     dict).  ``saved_config(ckpt)`` turns the stored config into the dict compared with
     ``now_config``."""
-    ckpt = load_checked(path, fmt, version, what)
+    ckpt = load_checked(path, fmt, version, what, checkpoint_fix(path))
     check_checkpoint(path, ckpt, task, saved_config(ckpt), now_config, networks, what)
     for name, net in networks.items():
         net.load_state_dict(ckpt[name])
@@ -118,5 +125,5 @@ def load_run(path, fmt: str, version: int, what: str, *, task: str, saved_config
     return int(ckpt["update"]), json.loads(ckpt["log"]), ckpt
 
 
-__all__ = ["LearnerInputError", "TrainResult", "check_checkpoint", "check_inputs", "load_run",
+__all__ = ["LearnerInputError", "TrainResult", "check_checkpoint", "check_inputs", "checkpoint_fix", "load_run",
            "save_run"]

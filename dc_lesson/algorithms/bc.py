@@ -60,6 +60,7 @@ import time
 import numpy as np
 import torch
 
+from dc_lesson.checks import check_fields
 from dc_lesson.data.types import Demonstrations, Trajectory
 from dc_lesson import progress as _progress
 from dc_lesson import timing as _timing
@@ -87,6 +88,8 @@ class BCConfig:
     seed: int = 0                # the one seed: split, initial weights, minibatch order
 
     def __post_init__(self):
+        check_fields(self, positive=("epochs", "batch_size", "lr", "patience", "max_grad_norm"),
+                     non_negative=("weight_decay", "min_delta", "seed"))
         for name in ("epochs", "batch_size"):
             if getattr(self, name) < 1:
                 raise ValueError(f"BCConfig.{name} must be at least 1, got {getattr(self, name)}")

@@ -114,7 +114,8 @@ import torch
 from dc_lesson import progress as _progress
 from dc_lesson import timing as _timing
 from dc_lesson.algorithms import bc as _bc
-from dc_lesson.algorithms.base import TrainResult, check_inputs
+from dc_lesson.algorithms.base import TrainResult, check_inputs, checkpoint_fix
+from dc_lesson.checks import check_fields
 from dc_lesson.density import softflow as _softflow
 from dc_lesson import tasks as _tasks
 from dc_lesson.data import Demonstrations
@@ -171,7 +172,10 @@ class DCConfig:
     seed: int = 0
 
     def __post_init__(self):
-        object.__setattr__(self, "flow_hidden", tuple(int(h) for h in self.flow_hidden))
+        check_fields(self, positive=("loops", "iterations", "flow_states", "flow_iterations",
+                                     "flow_lr", "sigma_max", "rho", "bc_steps", "bc_batch_size",
+                                     "lr", "max_grad_norm"),
+                     non_negative=("flow_refit_iterations", "weight_decay", "seed"))
         if not isinstance(self.ppo, PPOConfig):
             raise TypeError(f"DCConfig.ppo must be a ppo.PPOConfig, got {type(self.ppo)}")
         for name, allowed in (("update", UPDATES), ("reward", REWARDS),
@@ -619,7 +623,8 @@ def _save_checkpoint(path, task, config, loop, it, learner, flow, scale, generat
 
 
 def _load_checkpoint(path, task, config, learner, generator, envs):
-    ckpt = load_checked(path, CHECKPOINT_FORMAT, CHECKPOINT_VERSION, "DC checkpoint")
+    ckpt = load_checked(path, CHECKPOINT_FORMAT, CHECKPOINT_VERSION, "DC checkpoint",
+                        checkpoint_fix(path))
     check_checkpoint(path, ckpt, task, json.loads(ckpt["config"]),
                      json.loads(config.to_json()), what="DC checkpoint")
     if json.loads(ckpt["policy_args"]) != learner.pi.config():

@@ -105,6 +105,7 @@ from dc_lesson.algorithms import bc as _bc
 from dc_lesson.algorithms import ppo as _ppo
 from dc_lesson.algorithms.base import TrainResult, check_inputs, load_run, save_run
 from dc_lesson.nn import fast as _fast
+from dc_lesson.checks import check_fields
 from dc_lesson.nn.policies import ACTION_HIGH, ACTION_LOW, GaussianPolicy, ValueNetwork, mlp
 
 REWARD_FORMS = ("gail", "log_d", "logit")
@@ -139,6 +140,8 @@ class GAILConfig:
     seed: int = 0                   # the one seed of the run
 
     def __post_init__(self):
+        check_fields(self, positive=("disc_lr", "disc_steps", "disc_batch", "reward_scale"),
+                     non_negative=("grad_penalty", "value_warmup", "entropy", "seed"))
         if self.reward_form not in REWARD_FORMS:
             raise ValueError(f"unknown reward_form {self.reward_form!r}; choose one of "
                              f"{', '.join(REWARD_FORMS)}")

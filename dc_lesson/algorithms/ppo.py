@@ -43,6 +43,7 @@ from dc_lesson import timing as _timing
 from dc_lesson import tasks as _tasks
 from dc_lesson.algorithms.base import (TrainResult, check_checkpoint, check_inputs, load_run,
                                        save_run)
+from dc_lesson.checks import check_fields
 from dc_lesson.data.rollout import episode_seeds
 from dc_lesson.nn import fast as _fast
 from dc_lesson.nn.policies import GaussianPolicy, ValueNetwork
@@ -83,6 +84,11 @@ class PPOConfig:
     seed: int = 0                # the one seed of the run
 
     def __post_init__(self):
+        check_fields(self, positive=("n_envs", "n_steps", "n_epochs", "n_minibatches",
+                                     "clip_coef", "max_grad_norm", "lr", "target_kl",
+                                     "total_steps", "episode_steps"),
+                     non_negative=("ent_coef", "vf_coef", "weight_decay", "seed"),
+                     fraction=("gamma", "gae_lambda"))
         if self.batch_size % self.n_minibatches:
             raise ValueError(f"the batch (n_envs * n_steps = {self.batch_size}) must split into "
                              f"n_minibatches = {self.n_minibatches} equal minibatches")

@@ -11,12 +11,12 @@ The most used names are re-exported here: ``from dc_lesson import data; data.loa
 from dc_lesson.data import types
 from dc_lesson.data.types import Demonstrations, Trajectory, TrajectoryError
 from dc_lesson.data import store
-from dc_lesson.data.store import (DEMO_FORMAT, DEMOS_DIR, DemoError, demo_set, load_demos,
+from dc_lesson.data.store import (DEMO_FORMAT, DEMOS_DIR, DemoError, demo_path, demo_set, load_demos,
                                   manifest_entry,
                                   read_demo_file, read_manifest, regenerate_hint, save_demos,
                                   sha256)
 from dc_lesson.data import convert, modes, rollout
 
 __all__ = ["DEMOS_DIR", "DEMO_FORMAT", "DemoError", "Demonstrations", "Trajectory",
-           "TrajectoryError", "convert", "demo_set", "load_demos", "manifest_entry", "modes", "read_demo_file",
+           "TrajectoryError", "convert", "demo_path", "demo_set", "load_demos", "manifest_entry", "modes", "read_demo_file",
            "read_manifest", "regenerate_hint", "rollout", "save_demos", "sha256", "store", "types"]

@@ -22,6 +22,7 @@ and the first k episodes of a longer call are the same as those of a shorter one
 
 from __future__ import annotations
 
+import numbers
 from typing import Callable, Union
 
 import numpy as np
@@ -86,6 +87,60 @@ def as_batch_policy(policy: Policy) -> Callable[[np.ndarray], np.ndarray]:
     return numpy_policy
 
 
+class PolicyMismatchError(ValueError):
+    """A policy built for another task (other observation or action sizes)."""
+
+
+def _policy_dims(policy, depth: int = 0):
+    """(obs_dim, act_dim, task or None) of ``policy`` or of the network it wraps, or None.
+
+    Reads a network's ``config()`` (GaussianPolicy), a task-bound policy's ``spec`` (random,
+    planner), and looks through the wrappers the library makes (``policy``, ``net``,
+    ``experts``)."""
+    if depth > 4:
+        return None
+    spec = getattr(policy, "spec", None)
+    if isinstance(spec, _tasks.TaskSpec):
+        return spec.obs_dim, spec.act_dim, spec.name
+    config = getattr(policy, "config", None)
+    if callable(config):
+        try:
+            cfg = config()
+        except Exception:   # another object's config(): not ours to judge
+            cfg = None
+        if isinstance(cfg, dict) and "obs_dim" in cfg and "act_dim" in cfg:
+            return int(cfg["obs_dim"]), int(cfg["act_dim"]), None
+    for inner in ("policy", "net"):
+        if getattr(policy, inner, None) is not None and getattr(policy, inner) is not policy:
+            dims = _policy_dims(getattr(policy, inner), depth + 1)
+            if dims is not None:
+                return dims
+    for inner in getattr(policy, "experts", None) or ():
+        dims = _policy_dims(inner, depth + 1)
+        if dims is not None:
+            return dims
+    return None
+
+
+def check_policy(task: str, policy) -> None:
+    """Refuses, before any episode runs, a policy whose observation or action size is not
+    ``task``'s (a policy trained on another task); a plain function passes (its actions'
+    shape is checked at the first step)."""
+    spec = _tasks.spec(task)
+    dims = _policy_dims(policy)
+    if dims is None:
+        return
+    obs_dim, act_dim, its_task = dims
+    if its_task is not None and its_task != spec.name:
+        raise PolicyMismatchError(f"the policy acts in {its_task!r}, not {task!r}: make it "
+                                  f"for {task!r}")
+    if (obs_dim, act_dim) != (spec.obs_dim, spec.act_dim):
+        raise PolicyMismatchError(
+            f"the policy is built for observations of size {obs_dim} and actions of size "
+            f"{act_dim}; {task} has {spec.obs_dim} and {spec.act_dim}: use a policy trained "
+            f"on {task} (see dc_lesson.tasks.spec_table() for each task's sizes)")
+
+
 def trajectory_mode(task: _tasks.PortTask, mode_features: np.ndarray) -> int:
     """The mode an episode took: where it arrived and stayed (``task.episode_mode``), or
     ``tasks.NO_MODE`` (-1) when it reached none."""
@@ -111,8 +166,11 @@ def collect(task: str, policy: Policy, n_episodes: int, seed: int = 0, *,
             interrupted collection: ``first=k`` gives episodes k, k+1, ... of ``seed``).
     """
     spec = _tasks.spec(task)
-    if n_episodes < 1:
-        raise ValueError(f"n_episodes must be at least 1, got {n_episodes}")
+    if isinstance(n_episodes, bool) or not isinstance(n_episodes, numbers.Integral) \
+            or n_episodes < 1:
+        raise ValueError(f"n_episodes must be a whole number of at least 1, got "
+                         f"{n_episodes!r}")
+    check_policy(task, policy)
     T = spec.horizon if max_steps is None else min(int(max_steps), spec.horizon)
     act = as_batch_policy(policy)
     seeds = episode_seeds(seed, first + n_episodes)[first:]
@@ -142,7 +200,12 @@ def collect(task: str, policy: Policy, n_episodes: int, seed: int = 0, *,
         obs[:, 0], feats[:, 0] = venv.reset(chunk)
         states = venv.get_states()
         for t in range(T):
-            a = np.asarray(act(obs[:, t]), dtype=np.float64).reshape(B, spec.act_dim)
+            a = np.asarray(act(obs[:, t]), dtype=np.float64)
+            if a.size != B * spec.act_dim:
+                raise PolicyMismatchError(f"the policy returned actions of shape {a.shape} for "
+                                          f"{B} observations; {task} needs ({B}, "
+                                          f"{spec.act_dim})")
+            a = a.reshape(B, spec.act_dim)
             # Round to float32 before applying, so the stored action replays exactly.
             acts[:, t] = venv.check_actions(a)
             obs[:, t + 1], rews[:, t], feats[:, t + 1], _ = venv.step(acts[:, t])

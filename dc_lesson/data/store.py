@@ -1,19 +1,25 @@
 """The demonstrations on disk: ``data/demos/NAME.npz`` (no pickles) and ``manifest.json``.
 
 Every file is checked against the sha256 its manifest records before it is read, and read with
-``allow_pickle=False``; the manifest's file names are confined to the demos folder.
+``allow_pickle=False``.  The manifest's file names are confined to the demos folder: a plain
+relative name (no absolute path, no ``..``) of a regular file that, with any links followed,
+lies inside the folder; a FIFO, a device such as ``/dev/zero`` or a link out of the folder is
+refused before it is opened, so a hostile manifest can neither read elsewhere nor hang.
 """
 
 from __future__ import annotations
 
-import hashlib
 import io
 import json
+import numbers
+import os
 import pathlib
+import stat
 
 import numpy as np
 
 from dc_lesson import storage as _storage
+from dc_lesson.storage import sha256
 from dc_lesson import tasks as _tasks
 from dc_lesson.data.types import Demonstrations, Trajectory, TrajectoryError
 
@@ -47,14 +53,6 @@ def regenerate_hint(task: str, variant: str | None = None) -> str:
             + (f" --variant {variant}" if variant else ""))
 
 
-def sha256(path) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for block in iter(lambda: f.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()
-
-
 def save_demos(trajectories: list[Trajectory], path) -> str:
     """Writes trajectories of one task to ``path`` (.npz, atomically); returns its sha256."""
     from dc_lesson.storage import atomic_write_bytes
@@ -81,12 +79,44 @@ def save_demos(trajectories: list[Trajectory], path) -> str:
     return sha256(path)
 
 
+def _check_regular(path: pathlib.Path, hint: str) -> None:
+    """Refuses anything but a regular file, without opening it (a FIFO's open would block)."""
+    try:
+        mode = os.stat(path).st_mode
+    except FileNotFoundError:
+        raise DemoError(f"{path} is missing; {hint}") from None
+    except OSError as e:
+        raise DemoError(f"{path} cannot be read ({e.strerror}); {hint}") from None
+    if not stat.S_ISREG(mode):
+        raise DemoError(f"{path} is not a regular file (a device, FIFO or folder); {hint}")
+
+
+def demo_path(entry: dict, task: str, directory=None) -> pathlib.Path:
+    """The file a manifest entry names, confined to the demos folder; ``DemoError`` for an
+    absolute name, a ``..``, a link out of the folder or anything but a regular file."""
+    folder = pathlib.Path(directory or DEMOS_DIR)
+    hint = regenerate_hint(task)
+    name = entry.get("file") if isinstance(entry, dict) else None
+    if not isinstance(name, str) or not name or "\x00" in name:
+        raise DemoError(f"the manifest's entry for {task!r} names no file ({name!r}); {hint}")
+    rel = pathlib.PurePosixPath(name)
+    if rel.is_absolute() or pathlib.PureWindowsPath(name).is_absolute() or ".." in rel.parts \
+            or "\\" in name:
+        raise DemoError(f"the manifest's entry for {task!r} names {name!r}: a demonstration "
+                        f"file must be a plain name inside {folder}; {hint}")
+    path = folder / rel
+    resolved, root = path.resolve(), folder.resolve()
+    if not resolved.is_relative_to(root):
+        raise DemoError(f"{path} leads out of the demos folder (to {resolved}); {hint}")
+    _check_regular(resolved, hint)
+    return path
+
+
 def read_demo_file(path, task: str) -> list[Trajectory]:
     """Reads and validates a demonstration file of ``task``; clear errors for bad files."""
     path = pathlib.Path(path)
     hint = regenerate_hint(task)
-    if not path.exists():
-        raise DemoError(f"{path} is missing; {hint}")
+    _check_regular(path, hint)
     try:
         with np.load(path, allow_pickle=False) as z:
             contents = {k: z[k] for k in z.files}
@@ -123,12 +153,13 @@ def read_manifest(directory=None) -> dict:
     path = pathlib.Path(directory or DEMOS_DIR) / "manifest.json"
     if not path.exists():
         return {"format": DEMO_FORMAT, "tasks": {}}
+    _check_regular(path, "regenerate the demonstrations with: dc-lesson demos --task NAME")
     try:
         manifest = json.loads(path.read_text())
-    except json.JSONDecodeError as e:
+    except (json.JSONDecodeError, UnicodeDecodeError) as e:
         raise DemoError(f"{path} is not valid JSON ({e}); regenerate the demonstrations "
                         f"with: dc-lesson demos --task NAME") from None
-    if not isinstance(manifest, dict) or "tasks" not in manifest:
+    if not isinstance(manifest, dict) or not isinstance(manifest.get("tasks"), dict):
         raise DemoError(f"{path} is not a demonstration manifest (no 'tasks')")
     return manifest
 
@@ -142,6 +173,17 @@ def manifest_entry(task: str, directory=None, variant: str | None = None) -> dic
     return entry
 
 
+def _check_count(name: str, value, minimum: int = 1) -> None:
+    """``value`` is None or a whole number >= ``minimum`` (a bool, 2.5 or "3" is refused)."""
+    if value is None:
+        return
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral):
+        raise TypeError(f"load_demos: {name} must be a whole number or None, got "
+                        f"{value!r} ({type(value).__name__})")
+    if value < minimum:
+        raise ValueError(f"load_demos: {name} must be at least {minimum}, got {value}")
+
+
 def load_demos(task: str, n_trajectories: int | None = None, seed: int | None = None,
                directory=None, variant: str | None = None) -> Demonstrations:
     """The expert demonstrations of ``task``, checked against the manifest's sha256.
@@ -149,12 +191,20 @@ def load_demos(task: str, n_trajectories: int | None = None, seed: int | None = 
     ``n_trajectories`` takes a subset: with ``seed=None`` the first n (so the paper's subsets
     of 4, 11, 18 and 25 are nested), otherwise n drawn without replacement by that seed.
     ``variant`` names another expert's demonstrations of the task (``"coin"``).
+    ``n_trajectories`` and ``seed`` must be whole numbers (``True``, ``2.5`` and ``"3"`` are
+    refused, not converted): ``n_trajectories`` from 1 to the number stored, ``seed`` from 0.
     """
+    _check_count("n_trajectories", n_trajectories)
+    _check_count("seed", seed, minimum=0)
+    if directory is not None and not isinstance(directory, (str, os.PathLike)):
+        raise TypeError(f"directory must be a path (str or pathlib.Path), got "
+                        f"{type(directory).__name__}")
     entry = manifest_entry(task, directory, variant)
-    path = pathlib.Path(directory or DEMOS_DIR) / entry["file"]
+    path = demo_path(entry, task, directory)
     hint = regenerate_hint(task, variant)
-    if not path.exists():
-        raise DemoError(f"{path} is missing; {hint}")
+    if not isinstance(entry.get("sha256"), str):
+        raise DemoError(f"the manifest's entry for {demo_set(task, variant)!r} has no sha256; "
+                        f"{hint}")
     digest = sha256(path)
     if digest != entry["sha256"]:
         raise DemoError(f"{path} does not match its sha256 in the manifest (file {digest[:12]}"
@@ -162,13 +212,14 @@ def load_demos(task: str, n_trajectories: int | None = None, seed: int | None = 
                         f"changed; {hint}")
     trajs = read_demo_file(path, task)
     if n_trajectories is not None:
+        n_trajectories = int(n_trajectories)
         if not 1 <= n_trajectories <= len(trajs):
             raise ValueError(f"{task} has {len(trajs)} demonstrations; asked for "
                              f"{n_trajectories}")
         if seed is None:
             idx = np.arange(n_trajectories)
         else:
-            idx = np.sort(np.random.default_rng(seed).choice(len(trajs), n_trajectories,
+            idx = np.sort(np.random.default_rng(int(seed)).choice(len(trajs), n_trajectories,
                                                              replace=False))
         trajs = [trajs[i] for i in idx]
     return Demonstrations(task=task, trajectories=tuple(trajs), manifest=entry)

@@ -139,6 +139,7 @@ from torchdiffeq import odeint
 
 from dc_lesson import timing as _timing
 from dc_lesson.density import _trace
+from dc_lesson.checks import check_fields
 from dc_lesson.nn.checkpoint import PolicyFileError, atomic_torch_save, load_checked
 
 EXACT_TRACE_MAX_DIM = 100   # "auto" uses the exact trace up to this state dimension
@@ -185,7 +186,11 @@ class SoftFlowConfig:
     seed: int = 0                # the one seed of the fit
 
     def __post_init__(self):
-        object.__setattr__(self, "hidden", tuple(int(h) for h in self.hidden))
+        check_fields(self, positive=("sigma_max", "std_floor", "lr", "batch_size",
+                                     "max_grad_norm", "step_size", "rtol", "atol",
+                                     "max_num_steps", "eval_step_size", "eval_rtol",
+                                     "eval_atol", "eval_quadrature"),
+                     non_negative=("weight_decay", "iterations", "seed"))
         _check_solver(self.solver, self.step_size)
         _check_solver(self.eval_solver, self.eval_step_size)
         if self.trace not in ("hutchinson", "exact"):
@@ -697,11 +702,11 @@ def save_flow(flow: SoftFlow, path, meta: dict | None = None) -> pathlib.Path:
                               "meta": meta_json, "state_dict": flow.state_dict()}, path)
 
 
-def load_flow(path) -> SoftFlow:
+def load_flow(path, fix: str | None = None) -> SoftFlow:
     """Rebuilds a saved flow (eval mode), loaded with ``weights_only=True``; its metadata is in
     ``flow.meta``.  A missing, damaged or foreign file raises ``FileNotFoundError`` or
     :class:`~dc_lesson.policies.PolicyFileError` naming the file."""
-    obj = load_checked(path, FLOW_FORMAT, FLOW_VERSION, "SoftFlow")
+    obj = load_checked(path, FLOW_FORMAT, FLOW_VERSION, "SoftFlow", fix)
     try:
         flow = SoftFlow(**json.loads(obj["args"]))
         flow.load_state_dict(obj["state_dict"])

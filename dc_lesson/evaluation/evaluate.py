@@ -59,6 +59,7 @@ def evaluate_policy(task: str, policy, reference: _data.Demonstrations | None = 
     ``reference`` defaults to all the task's demonstrations.  With ``keep_features`` the
     result also holds ``features``, the learner's mode features (for coverage plots).
     """
+    _rollout.check_policy(task, policy)   # before loading anything or running an episode
     if reference is None:
         reference = _data.load_demos(task)
     t0 = time.perf_counter()

@@ -37,7 +37,7 @@ from dc_lesson import evaluation as _evaluation
 from dc_lesson.evaluation import metrics as _metrics
 from dc_lesson.data import rollout as _rollout
 from dc_lesson import tasks as _tasks
-from dc_lesson.experiments.protocol import BenchInputError, check_eval_seeds
+from dc_lesson.experiments.protocol import BenchInputError, check_count, check_eval_seeds, default
 
 # The demonstrations use seed 0 and the manifest's expert and random evaluations seeds 1 and 2;
 # BC's evaluation episodes come from a seed of their own.
@@ -135,8 +135,10 @@ def run(tasks, demo_counts=(4, 11, 18, 25), seeds=(0, 1, 2), eval_episodes: int 
     if not tasks or not demo_counts or not seeds:
         raise BenchInputError("bench bc needs at least one task, one demonstration count "
                               "and one seed")
-    if eval_episodes < 1:
-        raise BenchInputError(f"eval_episodes must be at least 1, got {eval_episodes}")
+    eval_episodes = check_count("eval_episodes", eval_episodes)
+    max_epochs = check_count("max_epochs", max_epochs)
+    for s in seeds:
+        check_count("a seed", s, minimum=0)
     references, task_info = {}, {}
     for task in tasks:   # fail on a missing task or a bad count before any training
         ref = _data.load_demos(task)
@@ -263,9 +265,12 @@ def run_drift(tasks, demo_counts=(4, 25), seeds=(0, 1, 2), n_episodes: int = 20,
     from dc_lesson.storage import write_result
     tasks, demo_counts, seeds = list(tasks), [int(n) for n in demo_counts], [int(s) for s in
                                                                              seeds]
-    if not tasks or not demo_counts or not seeds or n_episodes < 1:
-        raise BenchInputError("bench bc-drift needs a task, a demonstration count, a seed and "
-                              "at least one episode")
+    if not tasks or not demo_counts or not seeds:
+        raise BenchInputError("bench bc-drift needs a task, a demonstration count and a seed")
+    n_episodes = check_count("n_episodes", n_episodes)
+    max_epochs = check_count("max_epochs", max_epochs)
+    for s in seeds:
+        check_count("a seed", s, minimum=0)
     for task in tasks:
         n_have = len(_data.load_demos(task))
         if not all(2 <= n <= n_have for n in demo_counts):
@@ -321,7 +326,8 @@ def main(tasks=None, demo_counts=None, seeds=None, eval_episodes=None, max_epoch
     from dc_lesson import budget
     b = budget.current()
     tasks = list(tasks or available_tasks())
+    eval_episodes = check_count("eval_episodes", default(eval_episodes, b.bc_eval_episodes))
+    max_epochs = check_count("max_epochs", default(max_epochs, b.bc_max_epochs))
     print(f"budget: {b.name}; tasks: {', '.join(tasks)}")
-    return run(tasks, demo_counts or b.bc_demo_counts, seeds or b.bc_seeds,
-               eval_episodes or b.bc_eval_episodes, max_epochs=max_epochs or b.bc_max_epochs,
-               out=out, command=command)
+    return run(tasks, default(demo_counts, b.bc_demo_counts), default(seeds, b.bc_seeds),
+               eval_episodes, max_epochs=max_epochs, out=out, command=command)

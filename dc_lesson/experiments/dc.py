@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import math
 import time
 
 import numpy as np
@@ -41,7 +42,8 @@ from dc_lesson.algorithms import dc as _dc
 from dc_lesson.algorithms.dc import DC_DEFAULTS, preset as dc_config
 from dc_lesson import evaluation as _evaluation
 # One format for the stored mode features of every imitation benchmark (keys task__method__seedN).
-from dc_lesson.experiments.protocol import (feature_key, features_path, load_features, save_features,
+from dc_lesson.experiments.protocol import (BenchInputError, check_count, feature_key,
+                                           features_path, load_features, save_features,
                                            subsample)
 from dc_lesson.storage import write_result
 
@@ -254,7 +256,12 @@ def run_lr(task: str = LR_TASK, lrs=None, budget: _budget.Budget | None = None, 
     budget = budget or _budget.current()
     lrs = tuple(lrs if lrs is not None else budget.lr_sweep_lrs)
     seeds = tuple(seeds if seeds is not None else budget.lr_sweep_seeds)
-    steps = int(steps or budget.lr_sweep_steps)
+    steps = check_count("steps", budget.lr_sweep_steps if steps is None else steps)
+    if not seeds or not lrs or not all(lr > 0 and math.isfinite(lr) for lr in lrs):
+        raise BenchInputError(f"bench dc-lr needs a seed and positive learning rates, got "
+                              f"seeds {seeds}, rates {lrs}")
+    for s in seeds:
+        check_count("a seed", s, minimum=0)
     sweep_budget = dataclasses.replace(budget, il_steps=steps)
     old = torch.get_num_threads()
     torch.set_num_threads(threads)

@@ -33,6 +33,7 @@ from __future__ import annotations
 import contextlib
 import copy
 import dataclasses
+import math
 import time
 
 import numpy as np
@@ -42,7 +43,8 @@ from dc_lesson import data as _data
 from dc_lesson import evaluation as _evaluation
 from dc_lesson.algorithms import gail as _gail
 from dc_lesson.algorithms.gail import sized as gail_config
-from dc_lesson.experiments.protocol import (BenchInputError, check_eval_seeds, feature_key,
+from dc_lesson.experiments.protocol import (BenchInputError, check_count, check_eval_seeds,
+                                           default, feature_key,
                                            features_path, load_features, save_features,
                                            subsample as _subsample)
 
@@ -339,17 +341,23 @@ def main(what: str = "gail", tasks=None, seeds=None, steps=None, lr=None, out=No
     from dc_lesson import budget
     b = budget.current()
     print(f"budget: {b.name}")
+    if steps is not None:
+        check_count("steps", steps)
+    if lr is not None and not (isinstance(lr, (int, float)) and not isinstance(lr, bool)
+                               and math.isfinite(lr) and lr > 0):
+        raise BenchInputError(f"the learning rate must be a positive finite number, got {lr!r}")
     if what == "gail":
-        return run(tasks or TASKS, seeds or b.il_seeds, n_demos=b.il_demos,
-                   steps=steps or b.il_steps, eval_episodes=b.il_eval_episodes,
+        return run(tasks or TASKS, default(seeds, b.il_seeds), n_demos=b.il_demos,
+                   steps=default(steps, b.il_steps), eval_episodes=b.il_eval_episodes,
                    bc_max_epochs=b.bc_max_epochs, lr=lr, out=out, command=command)
     if what == "gail-lr":
         if lr is not None:
             raise BenchInputError("bench gail-lr sweeps the budget's learning rates; --lr is "
                                   "for bench gail")
         task = (tasks or [LR_TASK])[0]
-        return run_lr(task, b.lr_sweep_lrs, seeds or b.lr_sweep_seeds, n_demos=b.il_demos,
-                      steps=steps or b.lr_sweep_steps, eval_episodes=b.il_eval_episodes,
+        return run_lr(task, b.lr_sweep_lrs, default(seeds, b.lr_sweep_seeds),
+                      n_demos=b.il_demos, steps=default(steps, b.lr_sweep_steps),
+                      eval_episodes=b.il_eval_episodes,
                       bc_max_epochs=b.bc_max_epochs, out=out, command=command)
     raise ValueError(f"unknown benchmark {what!r}")
 

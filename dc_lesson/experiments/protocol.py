@@ -17,6 +17,22 @@ class BenchInputError(ValueError):
     """Sizes or seeds the benchmark cannot run with."""
 
 
+def check_count(name: str, value, minimum: int = 1):
+    """``value`` as an int if it is a whole number >= ``minimum``; ``BenchInputError``
+    otherwise (a size of 0 or below is refused, never replaced by a default)."""
+    import numbers
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < minimum:
+        raise BenchInputError(f"{name} must be a whole number of at least {minimum}, got "
+                              f"{value!r}")
+    return int(value)
+
+
+def default(value, fallback):
+    """``fallback`` only when ``value`` is None (not when it is 0 or empty: those are errors
+    the checks report, not requests for the default)."""
+    return fallback if value is None else value
+
+
 def check_eval_seeds(demos: _data.Demonstrations, eval_seed: int, n: int) -> None:
     """Refuses evaluation seeds whose episodes would start where a demonstration started."""
     clash = set(_rollout.episode_seeds(eval_seed, n).tolist()) & {t.seed for t in
@@ -65,5 +81,5 @@ def load_features(json_path_or_name="gail_modes.json") -> dict[str, np.ndarray]:
         return {k: f[k] for k in f.files}
 
 
-__all__ = ["BenchInputError", "check_eval_seeds", "feature_key", "features_path", "load_features",
+__all__ = ["BenchInputError", "check_count", "check_eval_seeds", "default", "feature_key", "features_path", "load_features",
            "save_features", "subsample"]

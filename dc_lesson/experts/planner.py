@@ -54,6 +54,7 @@ import mujoco
 import numpy as np
 from mujoco import rollout as mj_rollout
 
+from dc_lesson.checks import check_fields
 from dc_lesson import tasks as _tasks
 from dc_lesson.tasks.base import Batch
 
@@ -71,6 +72,11 @@ class PlannerConfig:
     planning_reward: str | None = None   # a key of PLANNING_REWARDS; None: the task's reward
     seed: int = 0
     threads: int = 1             # threads of mujoco.rollout (results do not depend on it)
+
+    def __post_init__(self):
+        check_fields(self, positive=("n_samples", "horizon", "n_knots", "replan_every",
+                                     "threads"),
+                     non_negative=("noise", "seed"))
 
     def validate(self) -> "PlannerConfig":
         if self.replan_every < 1:

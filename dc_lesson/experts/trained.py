@@ -12,6 +12,9 @@ Files, all under ``data/experts/``:
   most a few updates, and the resumed run ends exactly where an uninterrupted one would.
 * ``UNIT.pt``: the trained policy (a state_dict with its constructor arguments and metadata,
   loaded with ``torch.load(..., weights_only=True)``).
+* ``UNIT.pt.sha256`` (and ``checkpoints/UNIT.ckpt.sha256``): the file's sha256, checked
+  before it is loaded (:mod:`dc_lesson.nn.checkpoint`); a damaged policy is refused with the
+  command that restores it.
 * ``UNIT.json``: the recipe, command, seed, git revision, wall time and the learning curve.
 
 The expert acts with its policy's mean action (no sampling noise), which scores higher than
@@ -29,6 +32,7 @@ import numpy as np
 import torch
 
 from dc_lesson import tasks as _tasks
+from dc_lesson.nn.checkpoint import ModelFileError, checksum_path, load_checked
 from dc_lesson.nn.policies import load_policy, save_policy
 from dc_lesson.algorithms.ppo import PPOConfig, train
 from dc_lesson import storage as _storage
@@ -95,21 +99,69 @@ def unit_paths(unit: str, directory=None) -> dict[str, pathlib.Path]:
             "checkpoint": d / "checkpoints" / f"{unit}.ckpt"}
 
 
+def regenerate_hint(unit: str) -> str:
+    """How to make a unit's files again: the committed copy from git, or the training command
+    (which, from a finished checkpoint, only rewrites the policy)."""
+    task = RECIPES[unit].task if unit in RECIPES else unit
+    return (f"restore the committed copy with: git checkout -- data/experts/{unit}.pt "
+            f"data/experts/{unit}.pt.sha256; or rewrite it with: dc-lesson expert train "
+            f"--task {task}")
+
+
+def _check_resumable(unit: str, path, config: PPOConfig, total_steps) -> None:
+    """Refuses, before training, a checkpoint made with another configuration, saying how to
+    discard it (``--restart``) or resume it."""
+    from dc_lesson.algorithms import ppo as _ppo
+    ckpt = load_checked(path, _ppo.CHECKPOINT_FORMAT, _ppo.CHECKPOINT_VERSION,
+                        "PPO checkpoint", regenerate_hint(unit))
+    saved, now = _ppo._saved_config(ckpt), json.loads(config.to_json())
+    if saved != now:
+        diff = ", ".join(f"{k} {saved.get(k)!r} there, {now.get(k)!r} now"
+                         for k in sorted(saved.keys() | now.keys()) if saved.get(k) != now.get(k))
+        task = RECIPES[unit].task
+        steps = "" if total_steps is None else f" --steps {total_steps}"
+        raise ModelFileError(f"the checkpoint {path} of the {unit} expert was made with another "
+                             f"configuration ({diff}); to discard it and train from the first "
+                             f"update run: dc-lesson expert train --task {task}{steps} "
+                             f"--restart (or leave out --steps to resume it)")
+
+
 def train_unit(unit: str, total_steps: int | None = None, command: str = "",
-               directory=None, progress: bool = True) -> dict:
-    """Trains (or resumes training) one unit and writes its policy and metadata."""
+               directory=None, progress: bool = True, restart: bool = False) -> dict:
+    """Trains (or resumes training) one unit and writes its policy and metadata.
+
+    A finished unit whose policy file passes its checksum is not trained again.  A checkpoint
+    made with another configuration is refused (``ModelFileError``) unless ``restart``, which
+    discards it and trains from the first update; the result's ``"restarted"`` says whether a
+    checkpoint was discarded.
+    """
     if unit not in RECIPES:
         raise ValueError(f"no training recipe {unit!r}; the recipes are: {', '.join(RECIPES)}")
+    if total_steps is not None and (isinstance(total_steps, bool)
+                                    or not isinstance(total_steps, int) or total_steps < 1):
+        raise ValueError(f"total_steps must be a positive integer, got {total_steps!r}")
     recipe = RECIPES[unit]
     config = recipe.config
     if total_steps is not None:
         config = dataclasses.replace(config, total_steps=int(total_steps))
     paths = unit_paths(unit, directory)
-    if paths["policy"].exists() and paths["meta"].exists():
+    if paths["policy"].exists() and paths["meta"].exists() and not restart:
         done = json.loads(paths["meta"].read_text())
         if done.get("steps") == config.n_updates * config.batch_size and \
                 done.get("config") == json.loads(json.dumps(dataclasses.asdict(config))):
-            return {k: v for k, v in done.items() if k != "learning_curve"}  # already trained
+            try:
+                load_policy(paths["policy"], fix=regenerate_hint(unit))
+                return {k: v for k, v in done.items() if k != "learning_curve"}  # trained
+            except ModelFileError:
+                pass   # a damaged policy: the run below rewrites it from its checkpoint
+    restarted = False
+    if restart:
+        for p in (paths["checkpoint"], checksum_path(paths["checkpoint"])):
+            if p.exists():
+                p.unlink()
+                restarted = True
+    elif paths["checkpoint"].exists():
+        _check_resumable(unit, paths["checkpoint"], config, total_steps)
     paths["checkpoint"].parent.mkdir(parents=True, exist_ok=True)
     torch.set_num_threads(1)   # small networks: one thread is fastest and leaves a core free
     t0 = time.time()
@@ -128,7 +180,7 @@ def train_unit(unit: str, total_steps: int | None = None, command: str = "",
     save_policy(policy, paths["policy"], meta=meta)
     atomic_write_text(paths["meta"], json.dumps({**meta, "learning_curve": curve}, indent=1)
                       + "\n")
-    return meta
+    return {**meta, "restarted": restarted}
 
 
 def learning_curve(unit: str, directory=None) -> dict:
@@ -229,7 +281,7 @@ def load_unit(unit: str, directory=None):
         task = RECIPES[unit].task if unit in RECIPES else unit
         raise ExpertMissing(f"the trained expert {path} does not exist yet; train it with: "
                             f"dc-lesson expert train --task {task}")
-    return load_policy(path)
+    return load_policy(path, fix=regenerate_hint(unit))
 
 
 def load_trained_expert(task: str, directory=None, variant: str | None = None):

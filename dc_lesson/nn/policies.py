@@ -225,9 +225,12 @@ def save_policy(policy: GaussianPolicy | ValueNetwork, path, meta: dict | None =
                               "state_dict": policy.state_dict()}, path)
 
 
-def load_policy(path) -> GaussianPolicy | ValueNetwork:
-    """Rebuilds a saved network (in eval mode); its metadata is in the ``meta`` attribute."""
-    obj = load_checked(path, POLICY_FORMAT, POLICY_VERSION, "policy")
+def load_policy(path, fix: str | None = None) -> GaussianPolicy | ValueNetwork:
+    """Rebuilds a saved network (in eval mode); its metadata is in the ``meta`` attribute.
+
+    The file's sha256 is checked first (:func:`~dc_lesson.nn.checkpoint.load_checked`);
+    ``fix``, the command that makes the file again, goes into every error."""
+    obj = load_checked(path, POLICY_FORMAT, POLICY_VERSION, "policy", fix)
     try:
         cls = _CLASSES[obj["class"]]
         net = cls(**json.loads(obj["args"]))
@@ -235,7 +238,9 @@ def load_policy(path) -> GaussianPolicy | ValueNetwork:
         meta = json.loads(obj["meta"])
     except (KeyError, TypeError, ValueError, RuntimeError) as e:
         raise PolicyFileError(f"policy file {path} is inconsistent "
-                              f"({type(e).__name__}: {e})") from None
+                              f"({type(e).__name__}: {e}); "
+                              f"{fix or 'delete it and rerun the command that wrote it'}"
+                              ) from None
     net.meta = meta
     return net.eval()
 

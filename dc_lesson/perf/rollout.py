@@ -1,4 +1,4 @@
-"""Throughput benchmarks: ``dc-lesson bench rollout``.
+"""Throughput benchmarks: ``dc-lesson perf rollout``.
 
 For each task it times, on one core and with uniformly random actions:
 

@@ -12,7 +12,7 @@ import io
 import numpy as np
 
 from dc_lesson import tasks as _tasks
-from dc_lesson.data.rollout import Policy, as_batch_policy
+from dc_lesson.data.rollout import Policy, as_batch_policy, check_policy
 
 
 def frame(task: str, seed: int = 0, height: int = 240, width: int = 320,
@@ -30,6 +30,7 @@ def episode_frames(task: str, policy: Policy, seed: int = 0, n_steps: int = 100,
 
     A policy that plans on the simulator (``attach``, see :func:`dc_lesson.rollout.collect`)
     is attached to this episode's environment first."""
+    check_policy(task, policy)   # a policy of another task: a clear error, not a shape error
     env = _tasks.make(task)
     act = as_batch_policy(policy)
     if hasattr(policy, "attach"):

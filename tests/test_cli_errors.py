@@ -1,0 +1,194 @@
+"""Every dc-lesson command turns a bad value, a damaged file or an unwritable output into one
+line naming the fault and the fix, exit status 2, no traceback, and before any compute
+(issue 19: 23 inputs leaked tracebacks; sizes of 0 were silently replaced by defaults)."""
+
+import os
+import re
+import pathlib
+import shutil
+import subprocess
+import sys
+import time
+
+import pytest
+
+from dc_lesson import cli
+from dc_lesson.data import store
+from dc_lesson.experts import trained
+
+ROOT = pathlib.Path(cli.__file__).resolve().parent.parent
+
+
+def _corrupt_copy(src_dir: pathlib.Path, dst_dir: pathlib.Path, name: str) -> None:
+    """``dst_dir``: links to every file of ``src_dir`` but a copy of ``name`` with one bit
+    flipped (its sha256 no longer matches the manifest's)."""
+    dst_dir.mkdir(parents=True)
+    for f in src_dir.iterdir():
+        if f.is_file() and f.name != name:
+            os.symlink(f, dst_dir / f.name)
+    data = bytearray((src_dir / name).read_bytes())
+    data[len(data) // 2] ^= 0x10
+    (dst_dir / name).write_bytes(bytes(data))
+
+
+@pytest.fixture
+def corrupt_demos(tmp_path, monkeypatch):
+    d = tmp_path / "demos"
+    _corrupt_copy(store.DEMOS_DIR, d, "reacher4.npz")
+    monkeypatch.setattr(store, "DEMOS_DIR", d)
+    return d
+
+
+@pytest.fixture
+def expert_copy(tmp_path, monkeypatch):
+    """The hopper's committed expert files in a folder of their own (nothing committed is
+    touched); returns the folder."""
+    d = tmp_path / "experts"
+    (d / "checkpoints").mkdir(parents=True)
+    for name in ("hopper.pt", "hopper.pt.sha256", "hopper.json"):
+        shutil.copy(trained.EXPERTS_DIR / name, d / name)
+    for name in ("hopper.ckpt", "hopper.ckpt.sha256"):
+        shutil.copy(trained.EXPERTS_DIR / "checkpoints" / name, d / "checkpoints" / name)
+    monkeypatch.setattr(trained, "EXPERTS_DIR", d)
+    return d
+
+
+def run(argv, capsys):
+    """(exit status, stderr) of ``dc-lesson ARGV`` run in this process."""
+    t0 = time.perf_counter()
+    try:
+        code = cli.main(argv)
+    except SystemExit as e:   # argparse's own refusal of a bad value
+        code = e.code
+    err = capsys.readouterr().err
+    assert time.perf_counter() - t0 < 30, "the refusal came after compute"
+    return code, err
+
+
+# (arguments, a fixture it needs or None, what the message must say)
+CASES = [
+    (["expert", "eval", "--task", "cartpole", "--episodes", "0"], None, "must be at least 1"),
+    (["expert", "eval", "--task", "cartpole", "--episodes", "-3"], None, "must be at least 1"),
+    (["expert", "eval", "--task", "cartpole", "--restart"], None, "apply to expert train"),
+    (["expert", "train", "--task", "hopper", "--steps", "0"], None, "must be at least 1"),
+    (["expert", "train", "--task", "hopper", "--steps", "4096"], "expert_copy",
+     "another configuration.*--restart"),
+    (["expert", "eval", "--task", "hopper"], "damaged_expert",
+     "does not match its sha256.*dc-lesson expert train --task hopper"),
+    (["demos", "--task", "cartpole", "--stage", "demos"], None, "has no planner expert"),
+    (["demos", "--task", "cartpole", "--first", "3"], None, "--first applies to --stage eval"),
+    (["bench", "gail", "--tasks", "cartpole", "--lr", "-1"], None, "positive finite number"),
+    (["bench", "gail", "--tasks", "cartpole", "--lr", "nan"], None, "positive finite number"),
+    (["bench", "gail-lr", "--lr", "1e-3"], None, "does not take --lr"),
+    (["bench", "dc"], "corrupt_demos", "reacher4.npz does not match its sha256"),
+    (["bench", "dc-ablation"], "corrupt_demos", "reacher4.npz does not match its sha256"),
+    (["bench", "gail"], "corrupt_demos", "reacher4.npz does not match its sha256"),
+    (["bench", "bc", "--tasks", "reacher4"], "corrupt_demos", "does not match its sha256"),
+    (["tour", "--no-headline", "--out", "{tmp}/file.txt"], "a_file", "is a file"),
+    (["tour"], "corrupt_demos", "reacher4.npz does not match its sha256"),
+    (["bench", "dc", "--seeds", "1"], None, "does not take --seeds"),
+    (["bench", "dc-ablation", "--tasks", "reacher4", "reacher2"], None, "runs on one task"),
+    (["bench", "dc-lr", "--steps", "-1"], None, "must be at least 1"),
+    (["bench", "bc", "--episodes", "0"], None, "must be at least 1"),
+    (["bench", "bc", "--epochs", "0"], None, "must be at least 1"),
+    (["bench", "bc", "--demos", "0"], None, "must be at least 1"),
+    (["bench", "bc", "--seeds", "-1"], None, "0 or more"),
+    (["bench", "bc", "--tasks", "reacher4", "--out", "{tmp}"], None, "is a folder"),
+    (["bench", "softflow-fit", "--out", "{tmp}/file.txt/x.json"], "a_file", "is a file"),
+    (["bench", "gail", "--steps", "2.5"], None, "must be a whole number"),
+    (["train", "gail", "--task", "nope"], None, "nope"),
+    (["train", "nope", "--task", "cartpole"], None, "unknown learner 'nope'"),
+    (["train", "bc", "--task", "cartpole", "--demos", "0"], None, "must be at least 1"),
+    (["train", "bc", "--task", "cartpole", "--demos", "100000"], None, "asked for 100000"),
+    (["train", "ppo", "--task", "cartpole", "--demos", "3"], None, "leave out --demos"),
+    (["train", "bc", "--task", "cartpole", "--save", "{tmp}/{nope}.pt"], None,
+     "only {task} and {learner}"),
+    (["train", "bc", "--task", "cartpole", "--save", "{tmp}"], None, "is a folder"),
+    (["perf", "rollout", "--steps", "0"], None, "must be at least 1"),
+    (["perf", "softflow", "--tasks", "cartpole"], None, "does not take --tasks"),
+]
+
+
+@pytest.mark.parametrize("argv, needs, message", CASES, ids=[" ".join(c[0]) for c in CASES])
+def test_bad_input_gets_one_line_and_status_2(argv, needs, message, capsys, tmp_path,
+                                              request, monkeypatch):
+    monkeypatch.setenv("DC_LESSON_BUDGET", "smoke")
+    monkeypatch.delenv("DC_LESSON_DEBUG", raising=False)
+    if needs == "a_file":
+        (tmp_path / "file.txt").write_text("a file, not a folder")
+    elif needs == "damaged_expert":
+        d = request.getfixturevalue("expert_copy")
+        data = bytearray((d / "hopper.pt").read_bytes())
+        data[5000] ^= 0x04   # one bit
+        (d / "hopper.pt").write_bytes(bytes(data))
+    elif needs is not None:
+        request.getfixturevalue(needs)
+    argv = [a.replace("{tmp}", str(tmp_path)) for a in argv]
+    code, err = run(argv, capsys)
+    assert code == 2, err
+    assert "Traceback" not in err
+    assert re.search(message, err), err
+    last = err.strip().splitlines()[-1]
+    assert last.startswith("dc-lesson") and ("error:" in last or last.startswith("dc-lesson:"))
+
+
+def test_the_refused_checkpoint_is_kept_and_restart_discards_it(expert_copy, capsys,
+                                                               monkeypatch):
+    ckpt = expert_copy / "checkpoints" / "hopper.ckpt"
+    before = ckpt.read_bytes()
+    code, _ = run(["expert", "train", "--task", "hopper", "--steps", "4096"], capsys)
+    assert code == 2 and ckpt.read_bytes() == before   # the refusal changed nothing
+
+    class Started(Exception):
+        pass
+
+    def start_training(*args, **kwargs):   # training itself is tested in test_ppo
+        assert not ckpt.exists()           # the checkpoint is gone before training starts
+        raise Started
+    monkeypatch.setattr(trained, "train", start_training)
+    with pytest.raises(Started):
+        trained.train_unit("hopper", total_steps=4096, restart=True, progress=False)
+    assert not ckpt.exists() and not ckpt.with_name("hopper.ckpt.sha256").exists()
+
+
+def test_an_unexpected_error_is_one_line_with_status_1(capsys, monkeypatch):
+    monkeypatch.delenv("DC_LESSON_DEBUG", raising=False)
+    monkeypatch.setattr(cli, "cmd_tasks", lambda args: 1 / 0)
+    code, err = run(["tasks"], capsys)
+    assert code == 1 and "Traceback" not in err and "DC_LESSON_DEBUG=1" in err
+    monkeypatch.setenv("DC_LESSON_DEBUG", "1")
+    with pytest.raises(ZeroDivisionError):
+        cli.main(["tasks"])
+
+
+def test_the_real_command_leaks_no_traceback(tmp_path):
+    """The installed entry point, in a process of its own, with a damaged demonstration file
+    in a data folder of its own (DC_LESSON_DATA)."""
+    data = tmp_path / "data"
+    data.mkdir()
+    _corrupt_copy(store.DEMOS_DIR, data / "demos", "reacher4.npz")
+    for sub in ("experts", "results"):
+        os.symlink(store.DEMOS_DIR.parent / sub, data / sub)
+    env = {**os.environ, "DC_LESSON_DATA": str(data), "DC_LESSON_BUDGET": "smoke",
+           "PYTHONPATH": str(ROOT)}
+    env.pop("DC_LESSON_DEBUG", None)
+    for argv in (["bench", "dc"], ["expert", "eval", "--task", "cartpole", "--episodes", "0"]):
+        p = subprocess.run([sys.executable, "-m", "dc_lesson.cli", *argv], env=env,
+                           capture_output=True, text=True, timeout=120)
+        assert p.returncode == 2 and "Traceback" not in p.stderr, p.stderr
+        assert p.stderr.strip()
+
+
+def test_help_is_for_people():
+    parser = cli.build_parser()
+    text = parser.format_help()
+    assert "``" not in text and ":func:" not in text and ":mod:" not in text
+    assert "expert eval" in text
+    sub = {a.dest: a for a in parser._subparsers._group_actions}["cmd"].choices
+    bench, perf = sub["bench"].format_help(), sub["perf"].format_help()
+    for name, (summary, _) in cli.BENCHES.items():
+        assert name in bench and summary in bench
+    for name, (summary, _) in cli.PERFS.items():
+        assert name in perf and summary in perf
+    assert "bc: training seeds" not in bench   # --seeds is not only BC's
+    assert "--restart" in sub["expert"].format_help()

@@ -1,0 +1,43 @@
+"""Every third-party package the library or the book imports is declared in pyproject.toml
+(issue 19: pandas was imported by every chapter but not declared)."""
+
+import ast
+import importlib.metadata
+import pathlib
+import re
+import sys
+import tomllib
+
+ROOT = pathlib.Path(__file__).resolve().parent.parent
+OPTIONAL = {"imitation"}   # data.convert.to_imitation imports it lazily, with a clear error
+
+
+def _imports(path: pathlib.Path) -> set[str]:
+    out = set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            out |= {a.name.split(".")[0] for a in node.names}
+        elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+            out.add(node.module.split(".")[0])
+    return out
+
+
+def _norm(name: str) -> str:
+    return re.sub(r"[-_.]+", "-", name).lower()
+
+
+def test_every_imported_package_is_declared():
+    project = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
+    declared = {_norm(re.split(r"[=<>!~\[ ;]", d)[0]) for d in project["dependencies"]}
+    files = sorted((ROOT / "dc_lesson").rglob("*.py")) + sorted((ROOT / "book").glob("*.py"))
+    modules = set().union(*map(_imports, files)) - set(sys.stdlib_module_names) \
+        - {"dc_lesson", "__future__"} - OPTIONAL
+    dists = importlib.metadata.packages_distributions()
+    missing = {m: dists.get(m) for m in modules
+               if not any(_norm(d) in declared for d in dists.get(m, [m]))}
+    assert not missing, f"imported but not declared in pyproject.toml: {missing}"
+
+
+def test_python_versions():
+    project = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
+    assert project["requires-python"] == ">=3.11"
