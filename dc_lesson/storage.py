@@ -200,26 +200,6 @@ def dumps_standard(obj, **kwargs) -> str:
     return json.dumps(_standard(obj), allow_nan=False, **kwargs)
 
 
-class NotWritableError(OSError):
-    """An output path the library cannot write: found before any compute is spent."""
-
-
-def check_writable(path) -> pathlib.Path:
-    """Checks that ``path`` (a file to be written) can be created or replaced, before the
-    compute that produces it; raises :class:`NotWritableError` naming the path and the fix."""
-    path = pathlib.Path(path)
-    folder = path.parent
-    while not folder.exists() and folder != folder.parent:
-        folder = folder.parent
-    if path.is_dir():
-        raise NotWritableError(f"{path} is a folder; give a file name to write to")
-    if not os.access(folder, os.W_OK | os.X_OK) or (path.exists() and
-                                                     not os.access(path, os.W_OK)):
-        raise NotWritableError(f"cannot write {path}: {folder} is not writable; choose "
-                               f"another output path")
-    return path
-
-
 def write_result(path, payload: dict, *, command: str, seeds) -> pathlib.Path:
     """Writes ``payload`` with its provenance as standard JSON: a NaN or infinity (a value that
     was not measured, e.g. a log row of an update in which no episode ended) is written as
