@@ -30,6 +30,7 @@ import torch
 
 from dc_lesson import tasks as _tasks
 from dc_lesson.policies import load_policy, save_policy
+from dc_lesson import ppo as _ppo
 from dc_lesson.ppo import PPOConfig, train
 from dc_lesson.results import atomic_write_text, git_revision
 
@@ -51,6 +52,20 @@ def backward_running_reward(batch) -> np.ndarray:
 
 
 REWARDS = {None: None, "backward": backward_running_reward}
+
+
+def hopper_fell(obs: np.ndarray) -> np.ndarray:
+    """Gym's unhealthy hopper, read from the observation (torso height ``obs[0]``, angle
+    ``obs[1]``): below 0.7 m or tilted more than 0.2 rad.  A *training-only* termination
+    (PPO's ``terminate="hopper-fall"``): the task itself never ends an episode early, it pays
+    an unhealthy step nothing.  (Gym's third test, every position and velocity within +-100,
+    needs the unclipped velocities; a hopper does not get there before it falls.)"""
+    from dc_lesson.tasks import hopper
+    obs = np.asarray(obs)
+    return (obs[..., 0] <= hopper.HEALTHY_Z) | (np.abs(obs[..., 1]) >= hopper.HEALTHY_ANGLE)
+
+
+_ppo.TERMINATIONS["hopper-fall"] = hopper_fell
 
 
 @dataclasses.dataclass(frozen=True)

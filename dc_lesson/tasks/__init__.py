@@ -19,7 +19,6 @@ from typing import Callable
 import numpy as np
 from dm_control.suite import cartpole as suite_cartpole
 from dm_control.suite import cheetah as suite_cheetah
-from dm_control.suite import hopper as suite_hopper
 from dm_control.suite import humanoid as suite_humanoid
 from dm_control.suite import walker as suite_walker
 
@@ -48,7 +47,7 @@ _PORTS = {
     "reacher4": Port(reacher.SPECS[4], reacher.Physics,
                      functools.partial(reacher.get_model_and_assets, 4),
                      functools.partial(reacher.ReachAny, 4)),
-    "hopper": Port(hopper.SPEC, hopper.Physics, suite_hopper.get_model_and_assets, hopper.Hop),
+    "hopper": Port(hopper.SPEC, hopper.Physics, hopper.get_model_and_assets, hopper.Hop),
     "walker": Port(walker.SPEC, walker.Physics, suite_walker.get_model_and_assets, walker.Walk),
     "halfcheetah": Port(cheetah.SPEC, cheetah.Physics, suite_cheetah.get_model_and_assets,
                         cheetah.Run),
