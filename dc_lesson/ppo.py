@@ -167,6 +167,7 @@ class EnvBatch:
         self.episode_seeds = np.asarray(seeds, np.int64)
         self.episode_actions: list[np.ndarray] = []   # one (n_envs, act_dim) array per step
         self.restarts: list[tuple[int, int, int]] = []   # (step, copy, seed) of terminations
+        self.restarted = np.zeros(len(seeds), bool)      # copies restarted in this episode
         self.episode_return = np.zeros(len(self))
         obs, _ = self.venv.reset(self.episode_seeds)
         return obs
@@ -178,7 +179,10 @@ class EnvBatch:
         (at the episodes' end, their final observations, not the reset ones), the rewards,
         which episodes ended, and the returns of the episodes that ended.  With a training-only
         termination, a copy whose next observation is terminal ends (``dones`` and
-        ``last_terminal`` True) and restarts alone with the next seed.
+        ``last_terminal`` True) and restarts alone with the next seed; the episode it then
+        starts is cut at the shared time limit, and its return is left out of ``finished``
+        (so ``finished`` holds returns of episodes that ran from a start to a fall or to the
+        horizon: what the task pays, as a fallen hopper earns nothing more).
         """
         actions = self.venv.check_actions(actions)
         next_obs, rewards, _, done = self.venv.step(actions)
@@ -190,7 +194,9 @@ class EnvBatch:
         self.last_terminal = terminal
         finished = []
         if done:
-            finished = self.episode_return.tolist()
+            # A copy restarted after a termination was cut short by the shared time limit:
+            # its return is not an episode's (nor is it reported).
+            finished = self.episode_return[~(self.restarted & ~terminal)].tolist()
             self.obs = self._start([next(self.seeds) for _ in range(len(self))])
         else:
             self.obs = next_obs.copy()
@@ -202,6 +208,7 @@ class EnvBatch:
     def _restart(self, i: int, seed: int) -> None:
         """A terminated copy starts a new episode at once (training-only termination)."""
         self.restarts.append((len(self.episode_actions), i, seed))
+        self.restarted[i] = True
         self.obs[i] = self.venv.envs[i].reset(seed=seed)
         self.episode_return[i] = 0.0
 

@@ -86,7 +86,11 @@ RECIPES: dict[str, Recipe] = {r.unit: r for r in [
     Recipe("halfcheetah-backward", "halfcheetah2",
            PPOConfig(**_LOCOMOTION, total_steps=3_000_000, seed=1), reward="backward",
            note="the same settings, rewarded for running backwards"),
-    Recipe("hopper", "hopper", PPOConfig(**_LOCOMOTION, total_steps=3_000_000)),
+    Recipe("hopper", "hopper",
+           PPOConfig(**_LOCOMOTION, total_steps=1_000_000, terminate="hopper-fall"),
+           note="the locomotion settings, with Gym's termination of a fallen hopper for "
+                "training only (the task never ends early); without it, falls in the first "
+                "few hundred steps left most of every 1000-step episode lying still"),
     Recipe("walker", "walker", PPOConfig(**_LOCOMOTION, total_steps=5_000_000)),
     Recipe("ant", "ant", PPOConfig(**_LOCOMOTION, total_steps=5_000_000)),
     Recipe("humanoid", "humanoid", PPOConfig(**{**_LOCOMOTION, "hidden": (256, 256)},
