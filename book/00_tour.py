@@ -329,9 +329,10 @@ pd.DataFrame(floors.report()).set_index("task").round(1).fillna("")
 # cheetahs clear it within a million steps. The walker's and the ant's runs flatten out far
 # below theirs after 5M steps (hours of this CPU), so their experts became planners; the runs
 # are kept for this comparison. The hopper's run (its training episodes end when it falls,
-# so the early ones are short) passes its floor within a million steps, about five minutes
-# of this CPU; without that training-only termination, PPO's early falls left most of
-# every 1000-step episode lying still, and half a million steps taught it little.
+# so the early ones are short) passes its floor within a million steps, a quarter of an hour
+# of this (shared) CPU; without that training-only termination, PPO's early falls left most
+# of every 1000-step episode lying still, and in trial runs of the same length it learned
+# far less.
 
 # %%
 from dc_lesson.experts import trained
