@@ -108,3 +108,21 @@ def test_chapter_00s_reading_of_the_learning_curves_holds():
         s, r, floor = curve(unit)
         assert s[-1] >= 4_900_000 and r.max() < floor
     assert trained.RECIPES["hopper"].config.terminate == "hopper-fall"
+
+
+def test_a_unit_trained_before_a_new_ppo_knob_still_counts_as_trained(tmp_path, monkeypatch):
+    # halfcheetah.json predates PPOConfig.terminate: the missing knob takes its default.
+    import json
+    import shutil
+    meta = json.loads(trained.unit_paths("halfcheetah")["meta"].read_text())
+    assert "terminate" not in meta["config"]
+    for f in ("policy", "meta"):
+        shutil.copy(trained.unit_paths("halfcheetah")[f], trained.unit_paths("halfcheetah",
+                                                                             tmp_path)[f])
+
+    def no_training(*args, **kwargs):
+        raise AssertionError("retrained a unit that was already trained")
+
+    monkeypatch.setattr(trained, "train", no_training)
+    assert trained.train_unit("halfcheetah", directory=tmp_path, progress=False)["steps"] == \
+        meta["steps"]

@@ -125,8 +125,11 @@ def train_unit(unit: str, total_steps: int | None = None, command: str = "",
     paths = unit_paths(unit, directory)
     if paths["policy"].exists() and paths["meta"].exists():
         done = json.loads(paths["meta"].read_text())
+        # A knob added to PPOConfig after a unit was trained takes its default value.
+        defaults = {f.name: f.default for f in dataclasses.fields(PPOConfig)}
+        saved = json.loads(json.dumps({**defaults, **done.get("config", {})}))
         if done.get("steps") == config.n_updates * config.batch_size and \
-                done.get("config") == json.loads(json.dumps(dataclasses.asdict(config))):
+                saved == json.loads(json.dumps(dataclasses.asdict(config))):
             return {k: v for k, v in done.items() if k != "learning_curve"}  # already trained
     paths["checkpoint"].parent.mkdir(parents=True, exist_ok=True)
     torch.set_num_threads(1)   # small networks: one thread is fastest and leaves a core free
