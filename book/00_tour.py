@@ -164,12 +164,21 @@ render.video(frames, fps=15)
 # The paper ran OpenAI Gym's MuJoCo tasks; their code is not public. Where dm_control has the
 # same robot we keep dm_control's model, and we keep its task (its reward in $[0, 1]$ per step
 # and fixed 1000-step horizon) where a competent expert is reachable on a laptop CPU: cartpole,
-# walker, the cheetahs and the humanoid. Two ports take Gym's objective instead, rescaled to
-# $[0, 1]$ per step: `hopper`, because the suite's hop task (start lying in a random
-# orientation, no reward until hopping at speed) defeated every expert we could train here,
-# and `ant`, because the suite has no ant (it is Gym's ant model written as a dm_control
-# domain). No port terminates early: a fallen walker simply stops earning reward, which keeps
-# every trajectory the same length for the density models of later chapters.
+# walker, the cheetahs and the humanoid. Two ports are Gym's robots written as dm_control
+# domains, with Gym's objective rescaled to $[0, 1]$ per step: `ant`, because the suite has
+# no ant, and `hopper`. The suite does have a hopper, but its hop task (start lying in a
+# random orientation, no reward until hopping at speed) defeated every expert we could train
+# here, and on the suite's model with Gym's objective PPO only learned to stand. So `hopper`
+# is Gym's model (Gymnasium's `hopper.xml`), Gym's observation and Gym's reward divided by 4:
+#
+# $$r = \text{healthy} \cdot \operatorname{clip}\!\big((1 + v_x - 10^{-3}\lVert a\rVert^2) / 4,\ 0,\ 1\big),$$
+#
+# with $v_x$ the forward speed of the centre of mass and "healthy" Gym's test (torso above
+# 0.7 m and within 0.2 rad of upright): standing still pays a quarter per step, hopping at
+# 1 m/s a half, at 3 m/s or faster all of it. No port terminates early: a fallen walker or
+# hopper simply stops earning reward (a hopper may get up again, but from lying down it
+# practically cannot), which keeps every trajectory the same length for the density models
+# of later chapters.
 
 # %%
 table[["paper task", "differs from the paper"]].style.set_properties(**{"text-align": "left"})
@@ -216,9 +225,11 @@ print("replay identical:", np.array_equal(obs, traj.observations)
 #   nearest its start, the mode would be a function of the initial state, which a
 #   single-Gaussian policy can represent, and there would be little to collapse.
 # * `halfcheetah`, `hopper`: policies trained with the library's PPO
-#   (`dc-lesson expert train --task NAME`, a few million steps each, checkpointed so a run
+#   (`dc-lesson expert train --task NAME`, one to three million steps, checkpointed so a run
 #   survives interruption). `halfcheetah2` joins a forward and a backward runner by the same
-#   per-episode coin flip as the reachers.
+#   per-episode coin flip as the reachers. The hopper's PPO trains as Gym's does, with a
+#   fallen hopper ending its training episode (`PPOConfig(terminate="hopper-fall")`, for
+#   training only: the task itself never ends early).
 # * `walker`, `ant` and `humanoid`: no policy at all, but a **planner on the true
 #   simulator**. Predictive sampling (the simplest planner of MuJoCo MPC) keeps a plan of
 #   actions for the next half second (a whole second for the ant) and, at every control
@@ -302,9 +313,9 @@ plt.show()
 # We set each task a floor, a return a clearly competent expert reaches (for example 700 for
 # a reacher, whose targets must each be reached and held; 300 for a walking humanoid), and
 # check it from the stored files with `dc_lesson.experts.floors`: the mean return over the
-# 50 evaluation episodes, per mode for the multi-mode tasks, and for the hopper whether it
-# actually hops forward (standing still earns a quarter of the reward, so its return alone
-# could pass). **Not every expert clears its floor**, and the table says which: those tasks'
+# 50 evaluation episodes, per mode for the multi-mode tasks, and for the hopper also whether
+# it hops forward in every demonstration without falling (a mean return could hide one that
+# stands still, which earns a quarter of the reward, or one that falls). **Not every expert clears its floor**, and the table says which: those tasks'
 # demonstrations are still what a learner imitates, and scaled returns are still measured
 # against that expert, so on them "1.0" means "as good as our expert", not "solved".
 
@@ -320,9 +331,11 @@ pd.DataFrame(floors.report()).set_index("task").round(1).fillna("")
 # little below what its mean action scores). The dashed line is the task's floor. The
 # cheetahs clear it within a million steps. The walker's and the ant's runs flatten out far
 # below theirs after 5M steps (hours of this CPU), so their experts became planners; the runs
-# are kept for this comparison. The hopper, still a PPO expert, climbs to about 250 and
-# stays: a quarter of the reward for every step standing is a safe income, and PPO never
-# found the hop that pays the rest (the planner fared worse: it fell within 50 steps).
+# are kept for this comparison. The hopper's run (its training episodes end when it falls,
+# so the early ones are short) passes its floor within a million steps, a quarter of an hour
+# of this (shared) CPU; without that training-only termination, PPO's early falls left most
+# of every 1000-step episode lying still, and in trial runs of the same length it learned
+# far less.
 
 # %%
 from dc_lesson.experts import trained

@@ -227,6 +227,45 @@ def test_resumed_run_equals_uninterrupted_run(tmp_path):
                   checkpoint=ckpt)
 
 
+def test_training_only_termination_restarts_a_copy_and_stops_its_bootstrap(tmp_path):
+    # The hopper falls within a few hundred steps of random actions: a fallen copy restarts at
+    # once with the next episode seed, its last step is terminal (no bootstrap in GAE), and a
+    # run resumed from a checkpoint taken after restarts ends exactly where one run does.
+    from dc_lesson.experts import trained
+    config = ppo.PPOConfig(n_envs=3, n_steps=150, n_epochs=1, n_minibatches=3,
+                           total_steps=1800, terminate="hopper-fall", seed=3)
+    envs = ppo.EnvBatch("hopper", 3, seed=0, terminate="hopper-fall")
+    policy, value_fn = GaussianPolicy(11, 3, (8,)), ValueNetwork(11, (8,))
+    batch = ppo.collect_batch(envs, policy, value_fn, 300, torch.Generator().manual_seed(0))
+    assert batch.terminals.any() and envs.restarts
+    assert torch.equal(batch.terminals & ~batch.dones, torch.zeros_like(batch.dones))
+    fell = torch.from_numpy(trained.hopper_fell(batch.next_obs.numpy()))
+    assert torch.equal(batch.terminals, fell)
+    step, i, seed = envs.restarts[0]   # the copy restarted from the next seed's start state
+    assert np.array_equal(batch.obs[step, i].numpy(), ppo.EnvBatch("hopper", 1, 0).venv.envs[0]
+                          .reset(seed=seed))
+    adv, _ = ppo.compute_gae(batch.env_rewards, batch.values, batch.next_values, batch.dones,
+                             0.99, 0.95, batch.terminals)
+    t, j = map(int, torch.nonzero(batch.terminals)[0])
+    assert adv[t, j] == pytest.approx(float(batch.env_rewards[t, j] - batch.values[t, j]),
+                                      abs=1e-6)
+
+    _, _, log_full = ppo.train("hopper", config, progress=False)
+    ckpt = tmp_path / "run.pt"
+
+    def crash(row, *_):
+        if row["update"] == 3:
+            raise Crash
+
+    with pytest.raises(Crash):
+        ppo.train("hopper", config, progress=False, checkpoint=ckpt, checkpoint_every=3,
+                  callback=crash)
+    _, _, log = ppo.train("hopper", config, progress=False, checkpoint=ckpt, checkpoint_every=3)
+    _assert_same_log(log_full, log)
+    with pytest.raises(ValueError, match="unknown termination"):
+        ppo.EnvBatch("hopper", 1, 0, terminate="nope")
+
+
 def test_reward_fn_replaces_the_environment_reward():
     seen = {}
 

@@ -224,7 +224,6 @@ def test_spec_table_has_a_row_per_task():
 
 SUITE_ORIGINALS = {
     "cartpole": "dm_control.suite.cartpole:Balance",
-    "hopper": "dm_control.suite.hopper:Hopper",   # observation only: the reward is Gym's
     "walker": "dm_control.suite.walker:PlanarWalker",
     "halfcheetah": "dm_control.suite.cheetah:Cheetah",
     "humanoid": "dm_control.suite.humanoid:Humanoid",
@@ -248,23 +247,63 @@ def test_batched_ports_of_suite_tasks_equal_the_suites_own_functions(name):
         for key in ours:
             np.testing.assert_allclose(ours[key], theirs[key], rtol=1e-12, atol=1e-12,
                                        err_msg=key)
-        if name != "hopper":
-            assert env.task.get_reward(env.physics) == pytest.approx(
-                original.get_reward(env.task, env.physics), rel=1e-12, abs=1e-12)
+        assert env.task.get_reward(env.physics) == pytest.approx(
+            original.get_reward(env.task, env.physics), rel=1e-12, abs=1e-12)
 
 
-def test_hopper_pays_a_quarter_for_standing_and_all_for_hopping_forward():
+def _gym_hopper_reward(env, action):
+    """Gym's Hopper-v5 reward, written out from its documentation, with the centre of mass's
+    speed for Gym's torso speed: healthy_reward + forward_reward - ctrl_cost."""
+    qpos, qvel = env.physics.data.qpos, env.physics.data.qvel
+    z, angle, state = qpos[1], qpos[2], np.concatenate([qpos[2:], qvel])
+    is_healthy = z > 0.7 and -0.2 < angle < 0.2 and np.all((-100 < state) & (state < 100))
+    return is_healthy * 1.0 + env.physics.speed() - 1e-3 * np.sum(np.square(action))
+
+
+def test_hopper_pays_gyms_reward_over_four_clipped_to_the_unit_interval():
     env = tasks.make("hopper", seed=0)
     env.reset()
-    assert env.physics.height() > 0.6, "the hopper starts standing"
+    assert env.physics.height() > 1.2, "the hopper starts standing, as Gym's does"
+    rng = np.random.default_rng(0)
+    seen = []
+    for _ in range(300):
+        a = rng.uniform(-1, 1, 3)
+        _, r, _ = env.step(a)
+        healthy = env.physics.height() > 0.7 and abs(env.physics.data.qpos[2]) < 0.2
+        expected = np.clip(_gym_hopper_reward(env, a) / 4, 0, 1) if healthy else 0.0
+        assert r == pytest.approx(expected, abs=1e-12)
+        seen.append(healthy)
+    assert any(seen) and not all(seen)   # random actions make it fall: both cases checked
+    # Standing still pays a quarter; 3 m/s or more in full; a fallen hopper nothing.
+    env.reset(seed=1)
+    assert env.task.get_reward(env.physics) == pytest.approx(0.25, abs=0.01)
+    env.physics.data.qvel[0] = 3.5
     env.physics.forward()
-    assert env.task.get_reward(env.physics) == pytest.approx(0.25, abs=0.02)
-    env.physics.data.qvel[0] = 2.5
-    env.physics.forward()
-    assert env.task.get_reward(env.physics) == pytest.approx(1.0, abs=0.02)
-    env.physics.data.qpos[2] = 1.5    # rooty: lying on its side, torso level with the foot
+    assert env.task.get_reward(env.physics) == pytest.approx(1.0)
+    env.physics.data.qpos[2] = 0.3    # rooty: the torso tilted past Gym's 0.2 rad
     env.physics.forward()
     assert env.task.get_reward(env.physics) == 0.0
+
+
+def test_hopper_observes_what_gym_observes():
+    # qpos without the forward position, and the velocities clipped to +-10.
+    env = tasks.load("hopper", seed=0)
+    env.reset()
+    env.physics.data.qvel[:] = [12, -3, 0.5, -20, 1, 2]
+    env.physics.forward()
+    obs = env.observation()
+    np.testing.assert_allclose(obs[:5], env.physics.data.qpos[1:], rtol=1e-6)
+    np.testing.assert_allclose(obs[5:], [10, -3, 0.5, -10, 1, 2], rtol=1e-6)
+
+
+def test_hopper_model_is_gyms():
+    # Gym's Hopper-v5 numbers: 3 motors of gear 200, RK4 at 2 ms, frame skip 4, torso at 1.25 m.
+    env = tasks.load("hopper", seed=0)
+    m = env.physics.model
+    assert (m.nq, m.nv, m.nu) == (6, 6, 3)
+    np.testing.assert_array_equal(m.actuator_gear[:, 0], [200, 200, 200])
+    assert m.opt.timestep == 0.002 and env.spec.n_sub_steps == 4
+    assert m.qpos0[1] == 1.25
 
 
 @pytest.mark.parametrize("name", ALL)

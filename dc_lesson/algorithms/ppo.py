@@ -22,6 +22,13 @@ noise and minibatch order) and the stream of episode seeds (NumPy's ``SeedSequen
 A checkpoint stores all of that state, so a resumed run ends exactly where an uninterrupted one
 does.
 
+Training-only termination (``config.terminate``, a key of :data:`TERMINATIONS`): the task
+ports never end an episode early, but for training PPO may treat some states as terminal, as
+Gym does with a fallen hopper.  A copy whose observation the named function flags is restarted
+at once with the next episode seed (the others run on), and the step into that state is a true
+end: its value is not bootstrapped (``next_values`` 0 in :func:`compute_gae`).  Only the
+training episodes change; the task, and how an expert is judged, do not.
+
 Unlike CleanRL there is no reward normalisation: the task rewards lie in [0, 1], and an
 algorithm that brings its own reward (DC) decides its scale.
 """
@@ -81,6 +88,8 @@ class PPOConfig:
     #                                   bootstrapped; shorter episodes put more of the data near
     #                                   the start states, where a fallen body has not yet wasted
     #                                   the rest of a 1000-step episode lying still.
+    terminate: str | None = None  # training-only termination: a key of TERMINATIONS (None:
+    #                               episodes run to the time limit, as the tasks do)
     seed: int = 0                # the one seed of the run
 
     def __post_init__(self):
@@ -119,6 +128,20 @@ def preset(budget, seed: int = 0) -> PPOConfig:
     return PPOConfig(total_steps=budget.il_steps, seed=seed)
 
 
+TERMINATIONS: dict[str, Callable[[np.ndarray], np.ndarray]] = _tasks.TERMINATIONS
+"""Training-only terminal tests by name: ``fn(observations (N, obs_dim)) -> (N,) bool``, True
+where a training episode ends in a terminal state (see the module docstring); the task ports
+define them (``tasks.TERMINATIONS``: the hopper's fall)."""
+
+
+def termination(name: str | None):
+    if name is None:
+        return None
+    if name not in TERMINATIONS:
+        raise ValueError(f"unknown termination {name!r}; known: {', '.join(TERMINATIONS)}")
+    return TERMINATIONS[name]
+
+
 class SeedStream:
     """Episode seeds one after another: the i-th is ``episode_seeds(seed, i + 1)[i]``."""
 
@@ -142,8 +165,12 @@ class EnvBatch:
     replaying them.
     """
 
-    def __init__(self, task: str, n_envs: int, seed: int, episode_steps: int | None = None):
+    def __init__(self, task: str, n_envs: int, seed: int, episode_steps: int | None = None,
+                 terminate: str | None = None):
         self.task = task
+        self.terminate = terminate
+        self._terminal_fn = termination(terminate)
+        self.last_terminal = np.zeros(n_envs, bool)   # which copies the last step ended
         self.venv = _tasks.load_vec(task, n_envs)
         self.spec = self.venv.spec
         self.episode_steps = min(episode_steps or self.spec.horizon, self.spec.horizon)
@@ -156,6 +183,8 @@ class EnvBatch:
     def _start(self, seeds) -> np.ndarray:
         self.episode_seeds = np.asarray(seeds, np.int64)
         self.episode_actions: list[np.ndarray] = []   # one (n_envs, act_dim) array per step
+        self.restarts: list[tuple[int, int, int]] = []   # (step, copy, seed) of terminations
+        self.restarted = np.zeros(len(seeds), bool)      # copies restarted in this episode
         self.episode_return = np.zeros(len(self))
         obs, _ = self.venv.reset(self.episode_seeds)
         return obs
@@ -165,20 +194,40 @@ class EnvBatch:
 
         Returns ``(next_obs, rewards, dones, finished)``: the observations the actions led to
         (at the episodes' end, their final observations, not the reset ones), the rewards,
-        which episodes ended, and the returns of the episodes that ended.
+        which episodes ended, and the returns of the episodes that ended.  With a training-only
+        termination, a copy whose next observation is terminal ends (``dones`` and
+        ``last_terminal`` True) and restarts alone with the next seed; the episode it then
+        starts is cut at the shared time limit, and its return is left out of ``finished``
+        (so ``finished`` holds returns of episodes that ran from a start to a fall or to the
+        horizon: what the task pays, as a fallen hopper earns nothing more).
         """
         actions = self.venv.check_actions(actions)
         next_obs, rewards, _, done = self.venv.step(actions)
         done = done or self.venv.t >= self.episode_steps
         self.episode_actions.append(actions)
         self.episode_return += rewards
+        terminal = (np.zeros(len(self), bool) if self._terminal_fn is None else
+                    np.asarray(self._terminal_fn(next_obs), bool).reshape(len(self)))
+        self.last_terminal = terminal
         finished = []
         if done:
-            finished = self.episode_return.tolist()
+            # A copy restarted after a termination was cut short by the shared time limit:
+            # its return is not an episode's (nor is it reported).
+            finished = self.episode_return[~(self.restarted & ~terminal)].tolist()
             self.obs = self._start([next(self.seeds) for _ in range(len(self))])
         else:
-            self.obs = next_obs
-        return next_obs, rewards, np.full(len(self), done), finished
+            self.obs = next_obs.copy()
+            for i in np.flatnonzero(terminal):
+                finished.append(float(self.episode_return[i]))
+                self._restart(int(i), next(self.seeds))
+        return next_obs, rewards, done | terminal, finished
+
+    def _restart(self, i: int, seed: int) -> None:
+        """A terminated copy starts a new episode at once (training-only termination)."""
+        self.restarts.append((len(self.episode_actions), i, seed))
+        self.restarted[i] = True
+        self.obs[i] = self.venv.envs[i].reset(seed=seed)
+        self.episode_return[i] = 0.0
 
     def state_dict(self) -> dict:
         actions = np.zeros((0, len(self), self.spec.act_dim))
@@ -187,7 +236,9 @@ class EnvBatch:
         return {"seed": self.seeds.seed, "seed_count": self.seeds.count,
                 "episode_seeds": torch.from_numpy(self.episode_seeds.copy()),
                 "episode_actions": torch.from_numpy(actions),
-                "obs": torch.from_numpy(np.array(self.obs))}
+                "restarts": torch.tensor(self.restarts, dtype=torch.int64).reshape(-1, 3),
+                "obs": torch.from_numpy(np.array(self.obs)),
+                "episode_return": torch.from_numpy(self.episode_return.copy())}
 
     def load_state_dict(self, state: dict) -> None:
         """Restores the copies by replaying the running episodes from their seeds.
@@ -199,11 +250,19 @@ class EnvBatch:
             raise ValueError(f"the saved state has {len(state['episode_seeds'])} environments, "
                              f"this batch {len(self)}")
         self.obs = self._start(state["episode_seeds"].numpy())
+        restarts = [tuple(int(x) for x in r) for r in state.get("restarts", torch.zeros(0, 3))]
         for actions in state["episode_actions"].numpy():
-            self.obs, rewards, _, _ = self.venv.step(actions)
+            obs, rewards, _, _ = self.venv.step(actions)
+            self.obs = obs.copy()
             self.episode_actions.append(actions)
             self.episode_return += rewards
+            for step, i, seed in restarts:
+                if step == len(self.episode_actions):
+                    self._restart(i, seed)
         self.seeds = SeedStream(state["seed"], state["seed_count"])
+        if "episode_return" in state and not np.allclose(self.episode_return,
+                                                         state["episode_return"].numpy()):
+            raise RuntimeError("replaying the saved episodes did not reproduce their returns")
         if not np.array_equal(self.obs, state["obs"].numpy()):
             raise RuntimeError("replaying the saved episodes did not reproduce the saved "
                                "observations (a different MuJoCo version or task code?)")
@@ -226,6 +285,8 @@ class Batch:
     episode_returns: list[float]     # environment returns of the episodes that ended
     advantages: torch.Tensor | None = None   # (T, N), set from compute_gae before ppo_update
     returns: torch.Tensor | None = None      # (T, N) value targets, likewise
+    terminals: torch.Tensor | None = None    # (T, N) bool: a training-only terminal state
+    #                                          (config.terminate) ended the episode here
 
 
 def collect_batch(envs: EnvBatch, policy: GaussianPolicy, value_fn: ValueNetwork,
@@ -236,6 +297,7 @@ def collect_batch(envs: EnvBatch, policy: GaussianPolicy, value_fn: ValueNetwork
     obs, next_obs = torch.zeros(T, N, obs_dim), torch.zeros(T, N, obs_dim)
     actions, logprobs = torch.zeros(T, N, act_dim), torch.zeros(T, N)
     rewards, dones = torch.zeros(T, N), torch.zeros(T, N, dtype=torch.bool)
+    terminals = torch.zeros(T, N, dtype=torch.bool)
     finished: list[float] = []
     sampler = _fast.GaussianSampler(policy) if _fast.enabled() else None
     with torch.no_grad():
@@ -253,18 +315,21 @@ def collect_batch(envs: EnvBatch, policy: GaussianPolicy, value_fn: ValueNetwork
                 o, r, d, f = envs.step(actions[t].numpy())
             next_obs[t], rewards[t], dones[t] = (torch.from_numpy(o), torch.from_numpy(r),
                                                  torch.from_numpy(d))
+            terminals[t] = torch.from_numpy(envs.last_terminal)
             finished += f
         # Values in two batched passes rather than one per step.
         with _timing.phase("value"):
             values, next_values = value_fn(obs), value_fn(next_obs)
-    return Batch(obs, actions, logprobs, rewards, next_obs, dones, values, next_values, finished)
+    return Batch(obs, actions, logprobs, rewards, next_obs, dones, values, next_values, finished,
+                 terminals=terminals)
 
 
 # -- 3. advantages -------------------------------------------------------------------------------
 
 @_timing.timed("gae")
 def compute_gae(rewards: torch.Tensor, values: torch.Tensor, next_values: torch.Tensor,
-                dones: torch.Tensor, gamma: float, gae_lambda: float):
+                dones: torch.Tensor, gamma: float, gae_lambda: float,
+                terminals: torch.Tensor | None = None):
     """Generalised advantage estimation over (T, N) tensors: returns (advantages, targets).
 
         delta_t = r_t + gamma * V(s'_t) - V(s_t)          s'_t: what step t led to
@@ -272,9 +337,12 @@ def compute_gae(rewards: torch.Tensor, values: torch.Tensor, next_values: torch.
 
     A time-limit end still bootstraps through V(s'_t) (the episode was cut, not finished); only
     the sum stops there, because step t+1 belongs to the next episode.  A true terminal state
-    (none in these tasks) would be passed as ``next_values[t] = 0``.  The value targets are
+    (none in these tasks) would be passed as ``next_values[t] = 0``; ``terminals`` (T, N) bool
+    does that for the steps a training-only termination ended.  The value targets are
     ``A_t + V(s_t)``.
     """
+    if terminals is not None:
+        next_values = next_values * (1.0 - terminals.to(next_values.dtype))
     advantages = torch.zeros_like(rewards)
     next_advantage = torch.zeros_like(rewards[0])
     continues = 1.0 - dones.to(rewards.dtype)
@@ -461,7 +529,7 @@ def train(task: str, demos=None, config: PPOConfig = PPOConfig(), *,
     optimizer = _fast.adamw([*policy.parameters(), *value_fn.parameters()],
                                   lr=config.lr, eps=1e-5, weight_decay=config.weight_decay)
     generator = torch.Generator().manual_seed(sample_seed)
-    envs = EnvBatch(task, config.n_envs, env_seed, config.episode_steps)
+    envs = EnvBatch(task, config.n_envs, env_seed, config.episode_steps, config.terminate)
     first, log = 0, []
     if checkpoint is not None and pathlib.Path(checkpoint).exists():
         first, log = load_checkpoint(checkpoint, task=task, config=config, policy=policy,
@@ -486,7 +554,7 @@ def train(task: str, demos=None, config: PPOConfig = PPOConfig(), *,
                                  f"(n_steps, n_envs) = {tuple(batch.env_rewards.shape)}")
         batch.advantages, batch.returns = compute_gae(
             rewards, batch.values, batch.next_values, batch.dones, config.gamma,
-            config.gae_lambda)
+            config.gae_lambda, batch.terminals)
         terms = ppo_update(policy, value_fn, optimizer, batch, config, generator)
         # New observation statistics only now, so the update saw the inputs the batch was
         # collected with (its stored log-probabilities were computed on those).
@@ -517,6 +585,6 @@ def train(task: str, demos=None, config: PPOConfig = PPOConfig(), *,
     return TrainResult(policy, log, {"value": value_fn}, "ppo")
 
 
-__all__ = ["Batch", "EnvBatch", "PPOConfig", "preset", "SeedStream", "check_checkpoint", "clipped_surrogate", "collect_batch",
+__all__ = ["Batch", "EnvBatch", "PPOConfig", "preset", "SeedStream", "TERMINATIONS", "check_checkpoint", "clipped_surrogate", "collect_batch",
            "compute_gae", "explained_variance", "load_checkpoint", "ppo_update",
            "save_checkpoint", "train", "value_loss"]

@@ -14,10 +14,11 @@ How each floor is judged:
   the demonstrations that took it (mean return of those episodes), since "each target
   reached and held" and "300 in each direction" are per-mode promises;
 * ``hopper``: the floor is "hops forward for the whole episode without falling", which a
-  return cannot say in our port (standing still pays a quarter, 250 per episode).  So, in
-  every demonstration, the mean forward speed must be at least ``HOP_SPEED`` m/s and the
-  hopper must stand (torso at least 0.6 m above the foot, the task's own test) in at least
-  95% of the steps.
+  mean return alone cannot say (standing still pays a quarter, 250 per episode; 400 is what
+  hopping at 0.6 m/s without a fall pays).  So also, in every demonstration, the mean forward
+  speed must be at least ``HOP_SPEED`` m/s and the torso must stay above ``STAND_HEIGHT``
+  (0.7 m, Gym's healthy height, which the task's reward also tests) in at least 95% of the
+  steps.
 """
 
 from __future__ import annotations
@@ -26,10 +27,10 @@ import numpy as np
 
 FLOORS: dict[str, float] = {
     "cartpole": 750, "reacher1": 700, "reacher2": 700, "reacher4": 700, "halfcheetah": 350,
-    "halfcheetah2": 300, "walker": 700, "hopper": 100, "ant": 400, "humanoid": 300,
+    "halfcheetah2": 300, "walker": 700, "hopper": 400, "ant": 400, "humanoid": 300,
 }
 HOP_SPEED = 0.2          # m/s: slower than this is standing, not hopping forward
-STAND_HEIGHT = 0.6       # m: the hopper task's standing test
+STAND_HEIGHT = 0.7       # m: Gym's healthy torso height, part of the hopper task's reward
 
 
 def check(task: str, entry: dict, trajectories) -> dict:

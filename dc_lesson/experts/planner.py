@@ -191,21 +191,6 @@ def _humanoid_shaped(task, b: Batch) -> np.ndarray:
 PLANNING_REWARDS["humanoid-shaped"] = _humanoid_shaped
 
 
-def _hopper_shaped(task, b: Batch) -> np.ndarray:
-    """Hopper's reward plus a smooth health term: the task's standing test is a step (torso
-    0.6 m above the foot or nothing), so a planner sees a fall only once it is certain; this
-    pays for height above 0.45 m and an upright torso, so it steers away from falls early."""
-    from dm_control.utils import rewards
-    i = b.ids
-    height = b.xipos[:, i["torso"], 2] - b.xipos[:, i["foot"], 2]
-    healthy = rewards.tolerance(height, bounds=(0.8, 2.0), margin=0.35, sigmoid="gaussian")
-    upright = (1 + b.xmat[:, i["torso"], 8]) / 2
-    return task.batch_reward(b) + 2.0 * healthy * upright ** 4
-
-
-PLANNING_REWARDS["hopper-shaped"] = _hopper_shaped
-
-
 class PredictiveSampling:
     """Predictive sampling as a batch policy for :func:`dc_lesson.rollout.collect`."""
 
@@ -361,7 +346,8 @@ class PredictiveSampling:
 # Ant, 300-step trials from seed 100 with its own reward: over 0.5 s it stalled (about 0.1
 # per step); over 1.0 s, 32 samples scored 83, 64 scored 269 and 128 scored 272, so 64 (about
 # 0.12 s of CPU per control step).  PPO had plateaued near 160 per episode after 5M steps.
-# The hopper keeps its PPO expert (it stands; it does not hop): the planner made it fall
+# The hopper's expert is PPO's (on Gym's hopper model since issue 18).  On the earlier port
+# (dm_control's suite hopper model, torso 0.6 m above the foot to stand) the planner made it fall
 # within 50 steps over 0.5 s; over 1.0 s with 8 knots, "hopper-shaped" kept it standing at
 # about 0.08 m/s, and objectives paying more for speed moved it at 0.3-0.5 m/s but let the
 # torso drop below the standing height for much of each episode, or fall (300-step trials).

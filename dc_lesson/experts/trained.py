@@ -37,6 +37,7 @@ from dc_lesson.nn.policies import load_policy, save_policy
 from dc_lesson.algorithms.ppo import PPOConfig, train
 from dc_lesson import storage as _storage
 from dc_lesson.storage import atomic_write_text, git_revision
+from dc_lesson.algorithms import ppo as _ppo
 
 EXPERTS_DIR = _storage.DATA / "experts"
 
@@ -58,6 +59,9 @@ def backward_running_reward(batch) -> np.ndarray:
 REWARDS = {None: None, "backward": backward_running_reward}
 
 
+hopper_fell = _tasks.TERMINATIONS["hopper-fall"]   # PPO's training-only termination
+
+
 @dataclasses.dataclass(frozen=True)
 class Recipe:
     unit: str
@@ -76,7 +80,11 @@ RECIPES: dict[str, Recipe] = {r.unit: r for r in [
     Recipe("halfcheetah-backward", "halfcheetah2",
            PPOConfig(**_LOCOMOTION, total_steps=3_000_000, seed=1), reward="backward",
            note="the same settings, rewarded for running backwards"),
-    Recipe("hopper", "hopper", PPOConfig(**_LOCOMOTION, total_steps=3_000_000)),
+    Recipe("hopper", "hopper",
+           PPOConfig(**_LOCOMOTION, total_steps=1_000_000, terminate="hopper-fall"),
+           note="the locomotion settings, with Gym's termination of a fallen hopper for "
+                "training only (the task never ends early); without it, falls in the first "
+                "few hundred steps left most of every 1000-step episode lying still"),
     Recipe("walker", "walker", PPOConfig(**_LOCOMOTION, total_steps=5_000_000)),
     Recipe("ant", "ant", PPOConfig(**_LOCOMOTION, total_steps=5_000_000)),
     Recipe("humanoid", "humanoid", PPOConfig(**{**_LOCOMOTION, "hidden": (256, 256)},
@@ -147,8 +155,11 @@ def train_unit(unit: str, total_steps: int | None = None, command: str = "",
     paths = unit_paths(unit, directory)
     if paths["policy"].exists() and paths["meta"].exists() and not restart:
         done = json.loads(paths["meta"].read_text())
+        # A knob added to PPOConfig after a unit was trained takes its default value.
+        defaults = {f.name: f.default for f in dataclasses.fields(PPOConfig)}
+        saved = json.loads(json.dumps({**defaults, **done.get("config", {})}))
         if done.get("steps") == config.n_updates * config.batch_size and \
-                done.get("config") == json.loads(json.dumps(dataclasses.asdict(config))):
+                saved == json.loads(json.dumps(dataclasses.asdict(config))):
             try:
                 load_policy(paths["policy"], fix=regenerate_hint(unit))
                 return {k: v for k, v in done.items() if k != "learning_curve"}  # trained

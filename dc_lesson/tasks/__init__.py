@@ -31,7 +31,6 @@ from typing import Callable
 import numpy as np
 from dm_control.suite import cartpole as suite_cartpole
 from dm_control.suite import cheetah as suite_cheetah
-from dm_control.suite import hopper as suite_hopper
 from dm_control.suite import humanoid as suite_humanoid
 from dm_control.suite import walker as suite_walker
 
@@ -60,7 +59,7 @@ _PORTS = {
     "reacher4": Port(reacher.SPECS[4], reacher.Physics,
                      functools.partial(reacher.get_model_and_assets, 4),
                      functools.partial(reacher.ReachAny, 4)),
-    "hopper": Port(hopper.SPEC, hopper.Physics, suite_hopper.get_model_and_assets, hopper.Hop),
+    "hopper": Port(hopper.SPEC, hopper.Physics, hopper.get_model_and_assets, hopper.Hop),
     "walker": Port(walker.SPEC, walker.Physics, suite_walker.get_model_and_assets, walker.Walk),
     "halfcheetah": Port(cheetah.SPEC, cheetah.Physics, suite_cheetah.get_model_and_assets,
                         cheetah.Run),
@@ -73,6 +72,9 @@ _PORTS = {
 _MODELS: dict = {}   # compiled models, one per task and process: compiling costs ~0.1 s
 
 NAMES: tuple[str, ...] = tuple(_PORTS)
+# Training-only terminal tests by name, for PPO's ``terminate`` (the tasks never end early):
+# fn(observations (N, obs_dim)) -> (N,) bool.
+TERMINATIONS = {"hopper-fall": hopper.fell}
 SPECS: dict[str, TaskSpec] = {name: port.spec for name, port in _PORTS.items()}
 
 
@@ -160,6 +162,6 @@ def _register_gymnasium() -> None:
 
 _register_gymnasium()
 
-__all__ = ["NAMES", "NO_MODE", "SPECS", "ActionError", "PhysicsDiverged", "PortTask", "TaskEnv", "TaskSpec",
+__all__ = ["NAMES", "NO_MODE", "SPECS", "TERMINATIONS", "ActionError", "PhysicsDiverged", "PortTask", "TaskEnv", "TaskSpec",
            "UnknownTaskError", "VecEnv", "check_name", "gym_id", "load", "load_vec", "make", "spec",
            "spec_table"]
