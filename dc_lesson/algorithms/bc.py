@@ -66,6 +66,7 @@ from dc_lesson import progress as _progress
 from dc_lesson import timing as _timing
 from dc_lesson.algorithms.base import LearnerInputError, TrainResult, check_inputs
 from dc_lesson.nn import fast as _fast
+from dc_lesson.nn.mixture import MixturePolicy
 from dc_lesson.nn.policies import GaussianPolicy
 
 
@@ -85,11 +86,15 @@ class BCConfig:
     activation: str = "tanh"     # the hidden layers' activation
     log_std_init: float = -0.5   # initial log standard deviation of every action dimension
     norm_obs: bool = True        # observation normaliser in the policy, fitted on train states
+    policy: str = "gaussian"     # "gaussian" (GaussianPolicy) or "mixture" (nn.MixturePolicy)
+    n_components: int = 4        # the mixture's components (policy="mixture" only)
     seed: int = 0                # the one seed: split, initial weights, minibatch order
 
     def __post_init__(self):
-        check_fields(self, positive=("epochs", "batch_size", "lr", "patience", "max_grad_norm"),
-                     non_negative=("weight_decay", "min_delta", "seed"))
+        check_fields(self, positive=("epochs", "batch_size", "lr", "patience", "max_grad_norm",
+                                     "n_components"),
+                     non_negative=("weight_decay", "min_delta", "seed"),
+                     choices={"policy": ("gaussian", "mixture")})
         for name in ("epochs", "batch_size"):
             if getattr(self, name) < 1:
                 raise ValueError(f"BCConfig.{name} must be at least 1, got {getattr(self, name)}")
@@ -189,6 +194,10 @@ def bc_loss(policy: GaussianPolicy, obs, act) -> dict[str, torch.Tensor]:
     """
     obs = torch.as_tensor(obs, dtype=torch.float32)
     act = torch.as_tensor(act, dtype=torch.float32)
+    if getattr(policy, "log_std", None) is None:   # a mixture (nn.mixture): its own density
+        return {"nll": -policy.log_prob(obs, act).mean(),
+                "mse": ((policy(obs).detach() - act) ** 2).mean(),
+                "log_std": torch.tensor(math.nan)}
     dist = policy.distribution(obs)
     nll = -dist.log_prob(act).sum(-1).mean()
     return {"nll": nll,
@@ -222,7 +231,8 @@ def evaluate(policy: GaussianPolicy, obs, act, batch_size: int = 8192) -> dict[s
     n = len(obs)
     if n == 0:
         return {"nll": math.nan, "mse": math.nan,
-                "log_std": float(policy.log_std.mean())}
+                "log_std": (float(policy.log_std.mean()) if getattr(policy, "log_std", None)
+                        is not None else math.nan)}
     sums = {"nll": 0.0, "mse": 0.0}
     for start in range(0, n, batch_size):
         terms = bc_loss(policy, obs[start:start + batch_size], act[start:start + batch_size])
@@ -230,7 +240,8 @@ def evaluate(policy: GaussianPolicy, obs, act, batch_size: int = 8192) -> dict[s
         for k in sums:
             sums[k] += float(terms[k]) * size
     return {"nll": sums["nll"] / n, "mse": sums["mse"] / n,
-            "log_std": float(policy.log_std.mean())}
+            "log_std": (float(policy.log_std.mean()) if getattr(policy, "log_std", None)
+                        is not None else math.nan)}
 
 
 # -- training ------------------------------------------------------------------------------------
@@ -263,8 +274,13 @@ def train_bc(demos_or_trajectories, config: BCConfig = BCConfig(), progress: boo
     # Seed the initialisation without changing the caller's global torch RNG.
     with torch.random.fork_rng(devices=[]):
         torch.manual_seed(init_seed)
-        policy = GaussianPolicy(obs_dim, act_dim, config.hidden, config.activation,
-                                log_std_init=config.log_std_init, norm_obs=config.norm_obs)
+        if config.policy == "mixture":
+            policy = MixturePolicy(obs_dim, act_dim, config.n_components, config.hidden,
+                                   config.activation, log_std_init=config.log_std_init,
+                                   norm_obs=config.norm_obs)
+        else:
+            policy = GaussianPolicy(obs_dim, act_dim, config.hidden, config.activation,
+                                    log_std_init=config.log_std_init, norm_obs=config.norm_obs)
     # The normaliser sees the training states once, then stays fixed: the loss must not move
     # under the optimiser's feet, and validation states must not leak into training.
     policy.update_obs_norm(train_obs)

@@ -299,7 +299,8 @@ def collect_batch(envs: EnvBatch, policy: GaussianPolicy, value_fn: ValueNetwork
     rewards, dones = torch.zeros(T, N), torch.zeros(T, N, dtype=torch.bool)
     terminals = torch.zeros(T, N, dtype=torch.bool)
     finished: list[float] = []
-    sampler = _fast.GaussianSampler(policy) if _fast.enabled() else None
+    sampler = (_fast.GaussianSampler(policy)
+               if _fast.enabled() and isinstance(policy, GaussianPolicy) else None)
     with torch.no_grad():
         for t in range(T):
             obs[t] = torch.from_numpy(envs.obs)
@@ -417,9 +418,13 @@ def ppo_update(policy: GaussianPolicy, value_fn: ValueNetwork, optimizer: torch.
         order = torch.randperm(n, generator=generator)
         for start in range(0, n, size):
             idx = order[start:start + size]
-            dist = policy.distribution(obs[idx])
-            new_logp = dist.log_prob(actions[idx]).sum(-1)
-            entropy = dist.entropy().sum(-1).mean()
+            if getattr(policy, "log_std", None) is not None:     # the Gaussian policy
+                dist = policy.distribution(obs[idx])
+                new_logp = dist.log_prob(actions[idx]).sum(-1)
+                entropy = dist.entropy().sum(-1).mean()
+            else:     # a mixture (nn.mixture): its exact density, a sampled entropy estimate
+                new_logp = policy.log_prob(obs[idx], actions[idx])
+                entropy = policy.entropy(obs[idx], generator).mean()
             adv = advantages[idx]
             if config.norm_adv:
                 adv = (adv - adv.mean()) / (adv.std() + 1e-8)
@@ -449,7 +454,8 @@ def ppo_update(policy: GaussianPolicy, value_fn: ValueNetwork, optimizer: torch.
     out = {k: float(np.mean(v)) for k, v in terms.items()}
     out["explained_variance"] = explained_variance(old_values, targets)
     out["epochs"] = epochs
-    out["action_std"] = float(policy.log_std.detach().exp().mean())
+    out["action_std"] = (float(policy.log_std.detach().exp().mean())
+                         if getattr(policy, "log_std", None) is not None else math.nan)
     return out
 
 

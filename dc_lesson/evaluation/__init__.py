@@ -8,7 +8,8 @@
 
 from dc_lesson.evaluation import metrics
 from dc_lesson.evaluation import evaluate
-from dc_lesson.evaluation.evaluate import EVAL_SEED, MEASURES, evaluate_policy, learner_features, measure
+from dc_lesson.evaluation.evaluate import (ACTIONS, EVAL_SEED, MEASURES, evaluate_both,
+                                           evaluate_policy, learner_features, measure)
 
-__all__ = ["EVAL_SEED", "MEASURES", "evaluate", "evaluate_policy", "learner_features", "measure",
+__all__ = ["ACTIONS", "EVAL_SEED", "MEASURES", "evaluate", "evaluate_both", "evaluate_policy", "learner_features", "measure",
            "metrics"]

@@ -9,8 +9,13 @@ task's demonstrations:
   thing) and those of every step of the evaluation episodes (:func:`metrics.compare`);
 * for multi-mode tasks, the share of episodes in each mode.
 
-The policy acts with its mean action (``GaussianPolicy.act``, what :func:`rollout.collect`
-calls for a torch module), as BC's benchmark does; the evaluation episodes start from
+By default the policy acts with its mean action (``GaussianPolicy.act``, what
+:func:`rollout.collect` calls for a torch module); ``actions="sampled"`` draws its actions from
+the policy at its learned standard deviation instead (:class:`~dc_lesson.nn.StochasticPolicy`,
+seeded): the policy Eq. 2 of the paper is about, whose mode shares can differ from the mean
+action's (chapter 04).  :func:`evaluate_both` gives the two side by side.  For multi-mode
+tasks ``mode_tv`` is the total-variation distance of the episodes' mode shares ("none"
+included) from the reference's.  The evaluation episodes start from
 ``EVAL_SEED``'s initial states, none of which is a demonstration's (the demonstrations use
 seed 0 and the manifest's expert and random evaluations seeds 1 and 2).
 """
@@ -25,6 +30,8 @@ from dc_lesson import data as _data
 from dc_lesson.evaluation import metrics as _metrics
 from dc_lesson.data import rollout as _rollout
 from dc_lesson import tasks as _tasks
+from dc_lesson.data import modes as _modes
+from dc_lesson.nn.policies import StochasticPolicy
 
 EVAL_SEED = 1000
 MEASURES = ("scaled_return", "return", "emd", "kl", "rkl")
@@ -48,29 +55,52 @@ def measure(task: str, trajectories, reference: _data.Demonstrations,
                               n_max=emd_n_max, seed=0)}
     multi = len(_tasks.spec(task).modes) > 1
     out["mode_shares"] = _metrics.mode_shares(task, trajectories) if multi else None
+    out["mode_tv"] = (_modes.total_variation(out["mode_shares"],
+                                             _modes.mode_shares(task, reference.trajectories))
+                      if multi else None)
     return out
+
+
+ACTIONS = ("mean", "sampled")
 
 
 def evaluate_policy(task: str, policy, reference: _data.Demonstrations | None = None, *,
                     n_episodes: int = 50, seed: int = EVAL_SEED,
-                    emd_n_max: int | None = 2000, keep_features: bool = False) -> dict:
+                    emd_n_max: int | None = 2000, keep_features: bool = False,
+                    actions: str = "mean") -> dict:
     """Runs ``policy`` for ``n_episodes`` fresh episodes and measures it (module docstring).
 
     ``reference`` defaults to all the task's demonstrations.  With ``keep_features`` the
     result also holds ``features``, the learner's mode features (for coverage plots).
+    ``actions``: ``"mean"`` (the mean action) or ``"sampled"`` (actions drawn at the
+    policy's learned std, from a generator seeded by ``seed``).
     """
+    if actions not in ACTIONS:
+        raise ValueError(f"actions must be one of {ACTIONS}, got {actions!r}")
     _rollout.check_policy(task, policy)   # before loading anything or running an episode
     if reference is None:
         reference = _data.load_demos(task)
+    acting = policy if actions == "mean" else StochasticPolicy(policy, seed=seed)
     t0 = time.perf_counter()
-    trajs = _rollout.collect(task, policy, n_episodes, seed=seed, progress=False)
+    trajs = _rollout.collect(task, acting, n_episodes, seed=seed, progress=False)
     t1 = time.perf_counter()
     out = measure(task, trajs, reference, emd_n_max)
     out["eval_seconds"], out["measure_seconds"] = t1 - t0, time.perf_counter() - t1
     out["returns"] = [round(float(t.ret), 3) for t in trajs]
     if keep_features:
         out["features"] = learner_features(trajs)
+    out["actions"] = actions
     return out
 
 
-__all__ = ["EVAL_SEED", "MEASURES", "evaluate_policy", "learner_features", "measure"]
+def evaluate_both(task: str, policy, reference: _data.Demonstrations | None = None,
+                  **kwargs) -> dict:
+    """``{"mean": ..., "sampled": ...}``: :func:`evaluate_policy` with either kind of action,
+    on the same episodes' initial states."""
+    if reference is None:
+        reference = _data.load_demos(task)
+    return {a: evaluate_policy(task, policy, reference, actions=a, **kwargs) for a in ACTIONS}
+
+
+__all__ = ["ACTIONS", "EVAL_SEED", "MEASURES", "evaluate_both", "evaluate_policy",
+           "learner_features", "measure"]

@@ -119,7 +119,6 @@ def regenerate_hint(unit: str) -> str:
 def _check_resumable(unit: str, path, config: PPOConfig, total_steps) -> None:
     """Refuses, before training, a checkpoint made with another configuration, saying how to
     discard it (``--restart``) or resume it."""
-    from dc_lesson.algorithms import ppo as _ppo
     ckpt = load_checked(path, _ppo.CHECKPOINT_FORMAT, _ppo.CHECKPOINT_VERSION,
                         "PPO checkpoint", regenerate_hint(unit))
     saved, now = _ppo._saved_config(ckpt), json.loads(config.to_json())

@@ -6,6 +6,8 @@ atomic, checked way every model file (policy, checkpoint, flow) is written and r
 """
 
 from dc_lesson.nn import checkpoint, policies
+from dc_lesson.nn import mixture
+from dc_lesson.nn.mixture import MixturePolicy
 from dc_lesson.nn.policies import GaussianPolicy, StochasticPolicy, ValueNetwork, load_policy, save_policy
 
 __all__ = ["GaussianPolicy", "StochasticPolicy", "ValueNetwork", "checkpoint", "load_policy",

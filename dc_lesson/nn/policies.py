@@ -194,7 +194,7 @@ class StochasticPolicy:
 
     def __call__(self, obs: np.ndarray) -> np.ndarray:
         from dc_lesson.nn import fast
-        if fast.enabled():   # the same noise, the mean in NumPy (dc_lesson.nn.fast)
+        if fast.enabled() and isinstance(self.policy, GaussianPolicy):   # the same noise, the mean in NumPy (dc_lesson.nn.fast)
             a, _ = fast.snapshot(self.policy, fast.GaussianSampler)(obs, self.generator)
             return np.clip(a, ACTION_LOW, ACTION_HIGH)
         with torch.no_grad():

@@ -1,0 +1,105 @@
+"""The mixture policy: an exact density, sampling from it, and BC that keeps two modes."""
+
+import math
+
+import numpy as np
+import torch
+
+from dc_lesson.algorithms import bc
+from dc_lesson.nn import mixture, policies
+
+
+def test_log_prob_matches_a_direct_computation():
+    torch.manual_seed(0)
+    pi = mixture.MixturePolicy(3, 2, n_components=3, hidden=(16,))
+    obs, act = torch.randn(7, 3), torch.randn(7, 2)
+    with torch.no_grad():
+        log_w, mu, log_std = pi.components(obs)
+    direct = torch.zeros(7)
+    for b in range(7):            # sum_k w_k prod_d N(a_d; mu_kd, sigma_kd), term by term
+        total = 0.0
+        for k in range(3):
+            dens = 1.0
+            for d in range(2):
+                s = math.exp(float(log_std[b, k, d]))
+                z = (float(act[b, d]) - float(mu[b, k, d])) / s
+                dens *= math.exp(-0.5 * z * z) / (s * math.sqrt(2 * math.pi))
+            total += math.exp(float(log_w[b, k])) * dens
+        direct[b] = math.log(total)
+    torch.testing.assert_close(pi.log_prob(obs, act), direct, rtol=1e-4, atol=1e-4)
+
+
+def test_samples_follow_the_mixture_and_repeat_for_a_seed():
+    torch.manual_seed(1)
+    pi = mixture.MixturePolicy(2, 1, n_components=2, hidden=(8,))
+    obs = torch.zeros(20000, 2)
+    a = pi.sample(obs, torch.Generator().manual_seed(3))
+    b = pi.sample(obs, torch.Generator().manual_seed(3))
+    assert torch.equal(a, b)
+    log_w, mu, log_std = pi.components(obs[:1])
+    mean = float((log_w.exp()[0] * mu[0, :, 0]).sum())
+    assert abs(float(a.mean()) - mean) < 0.05      # the mixture's mean, to sampling error
+
+
+def test_bc_with_a_mixture_keeps_two_modes_a_gaussian_cannot():
+    """Demonstrations where the same states are followed by -1 or +1 (a hidden coin): Gaussian
+    BC fits their mean, 0, which neither mode takes; the mixture puts a component on each."""
+    rng = np.random.default_rng(0)
+    episodes = []
+    for i in range(20):
+        obs = rng.normal(size=(50, 2)).astype(np.float32)
+        act = np.full((50, 1), 1.0 if i % 2 else -1.0, np.float32)
+        act += rng.normal(0, 0.05, act.shape).astype(np.float32)
+        episodes.append((obs, act))
+    cfg = dict(epochs=150, val_fraction=0.0, hidden=(32,), lr=3e-3, seed=0)
+    gauss, _ = bc.train_bc(episodes, bc.BCConfig(**cfg), progress=False)
+    mix, log = bc.train_bc(episodes, bc.BCConfig(**cfg, policy="mixture", n_components=2),
+                           progress=False)
+    obs = torch.from_numpy(rng.normal(size=(500, 2)).astype(np.float32))
+    with torch.no_grad():
+        assert float(gauss(obs).abs().mean()) < 0.3        # between the modes
+        log_w, mu, _ = mix.components(obs)
+        means = mu[..., 0]
+        assert float(means.max(-1).values.mean()) > 0.8     # one component near +1
+        assert float(means.min(-1).values.mean()) < -0.8    # one near -1
+        w = log_w.exp()
+        assert float(w.min(-1).values.mean()) > 0.3         # both carry weight
+        samples = mix.sample(obs, torch.Generator().manual_seed(0))[:, 0]
+    assert 0.3 < float((samples > 0).float().mean()) < 0.7  # sampled episodes take both modes
+    assert np.isnan(log[-1]["log_std"])                    # no single log-std to report
+
+
+def test_a_mixture_saves_and_loads(tmp_path):
+    pi = mixture.MixturePolicy(4, 2, 3, norm_obs=True)
+    path = policies.save_policy(pi, tmp_path / "mix.pt", meta={"task": "toy"})
+    back = policies.load_policy(path)
+    assert isinstance(back, mixture.MixturePolicy)
+    obs = torch.randn(5, 4)
+    torch.testing.assert_close(back.log_prob(obs, torch.zeros(5, 2)),
+                               pi.log_prob(obs, torch.zeros(5, 2)))
+
+
+def test_ppo_and_dc_train_a_mixture_policy():
+    """PPO needs only the mixture's log-probability and samples; DC averages all its
+    parameters.  A few smoke iterations each, from a BC mixture, change the policy and stay
+    finite; the same seed repeats."""
+    import copy
+    import dataclasses
+
+    from dc_lesson import algorithms, budget, data
+    demos = data.load_demos("reacher2", n_trajectories=4)
+    start, _ = bc.train_bc(demos, bc.BCConfig(epochs=2, policy="mixture", n_components=2),
+                           progress=False)
+    smoke = budget.get("smoke")
+    for name in ("ppo", "dc"):
+        algo = algorithms.get(name)
+        cfg = algo.preset(smoke, 0)
+        if name == "dc":
+            cfg = dataclasses.replace(cfg, loops=1, iterations=2)
+        runs = [algo.train("reacher2", demos if algo.uses_demos else None, cfg,
+                           policy=copy.deepcopy(start), progress=False) for _ in range(2)]
+        before = torch.cat([p.flatten() for p in start.parameters()])
+        after = [torch.cat([p.detach().flatten() for p in r.policy.parameters()]) for r in runs]
+        assert isinstance(runs[0].policy, mixture.MixturePolicy)
+        assert torch.isfinite(after[0]).all() and not torch.equal(after[0], before)
+        assert torch.equal(after[0], after[1])
