@@ -100,6 +100,7 @@ from torch import nn
 
 from dc_lesson import progress as _progress
 from dc_lesson import tasks as _tasks
+from dc_lesson.algorithms import _reward_ppo
 from dc_lesson.algorithms import bc as _bc
 from dc_lesson.algorithms import ppo as _ppo
 from dc_lesson.algorithms.base import TrainResult, check_inputs, load_run, save_run
@@ -112,8 +113,8 @@ def _gail_ppo_default() -> _ppo.PPOConfig:
     # PPO for GAIL: larger batches and fewer, larger minibatches than PPOConfig's defaults;
     # 40 gradient steps per 4096 pairs instead of 320 per 2048 (the update, not the simulator,
     # is what costs here), a smaller learning rate so the BC start is refined, not replaced.
-    return _ppo.PPOConfig(n_envs=8, n_steps=512, n_epochs=5, n_minibatches=8, lr=3e-4,
-                          total_steps=300_000, ent_coef=0.0)
+    # DRIL, PWIL and NDI share these settings (_reward_ppo.imitation_ppo_default).
+    return _reward_ppo.imitation_ppo_default()
 
 
 @dataclasses.dataclass(frozen=True)
@@ -190,15 +191,7 @@ def sized(total_steps: int, seed: int = 0, lr: float | None = None,
     A run shorter than four of the default batches (only at the ``smoke`` budget) collects
     smaller batches, so it still makes four iterations, and warms its critic up for one.
     """
-    cfg = base or GAILConfig()
-    p = cfg.ppo
-    if total_steps < 4 * p.batch_size:
-        n_steps = max(p.n_minibatches, total_steps // (4 * p.n_envs) // p.n_minibatches
-                      * p.n_minibatches)
-        p = dataclasses.replace(p, n_steps=n_steps)
-        cfg = dataclasses.replace(cfg, value_warmup=min(cfg.value_warmup, 1))
-    cfg = dataclasses.replace(cfg, ppo=dataclasses.replace(p, total_steps=int(total_steps)),
-                              seed=int(seed))
+    cfg = _reward_ppo.sized(base or GAILConfig(), total_steps, seed)
     return cfg if lr is None else cfg.with_lr(lr)
 
 
