@@ -298,7 +298,9 @@ log[["steps", "state_flow_nll", "action_flow_nll", "expert_nll", "predecessor_nl
 # Each live run, from the same BC warm start, evaluated by `evaluation.evaluate_policy` on
 # fresh episodes against all the demonstrations (scaled return, EMD, KL, reverse KL, target
 # shares), and its cost: seconds per 100,000 environment interactions, **extrapolated** from
-# this short run at this budget (the BC warm start not counted). One seed and a tenth of the
+# this short run at this budget (its whole time, the ensemble's or the flow's fit included,
+# divided by its interactions; the BC warm start not counted). A short run overstates the
+# cost of a learner with a large one-off fit. One seed and a tenth of the
 # benchmark's interactions show the mechanics, not the outcome.
 
 # %%
@@ -308,7 +310,7 @@ for name, pi in (("BC", warm), *((n.upper(), r.policy) for n, r in live.items())
                                     n_episodes=BUDGET.il_eval_episodes)
     rows[name] = {"scaled return": ev["scaled_return"], "EMD": ev["emd"], "KL": ev["kl"],
                   "RKL": ev["rkl"], **{f"share {k}": v for k, v in ev["mode_shares"].items()},
-                  "s / 100k steps (extrapolated)": (
+                  "s per 100k steps (extrapolated)": (
                       live_seconds[name.lower()] / live[name.lower()].log[-1]["steps"] * 1e5
                       if name != "BC" else math.nan)}
 pd.DataFrame(rows).T.round(3)

@@ -324,3 +324,112 @@ def test_bad_configurations_are_refused_with_the_field_named():
         pwil.PWILConfig(ppo=_tiny_ppo(512), value_warmup=4)
     with pytest.raises(TypeError, match="PPOConfig"):
         ndi.NDIConfig(ppo={"lr": 1e-3})
+
+
+# -- each learns: a permutation test against its own start ------------------------------------------
+
+def _start_policy(task, demos):
+    """A fresh policy, its normaliser set from the expert's states: the learners' own start
+    (its mean action is 0 everywhere)."""
+    from dc_lesson import tasks
+    from dc_lesson.algorithms import bc
+    from dc_lesson.nn.policies import GaussianPolicy
+    spec = tasks.spec(task)
+    with torch.random.fork_rng(devices=[]):
+        torch.manual_seed(0)
+        pi = GaussianPolicy(spec.obs_dim, spec.act_dim, (64, 64), log_std_init=-0.5,
+                            norm_obs=True)
+    pi.update_obs_norm(bc.pairs(demos)[0])
+    return pi
+
+
+def _learning_ppo(total_steps, lr=1e-3, episode_steps=200):
+    # PPO's cartpole settings of tests/test_gail.py (gamma 0.98, 8 x 250 steps, 10 epochs of 8
+    # minibatches), training episodes cut at 200 steps (many starts to learn from).
+    return ppo.PPOConfig(n_envs=8, n_steps=250, n_epochs=10, n_minibatches=8, lr=lr,
+                         gamma=0.98, total_steps=total_steps, episode_steps=episode_steps)
+
+
+def _gain_test(name, task, config, min_gain, n_demos=4):
+    """Trains ``name`` from :func:`_start_policy`; evaluates the start and the result on the
+    same 10 fresh episodes (mean action); a one-sided permutation test of the mean return."""
+    import copy
+    import time
+    from scipy import stats
+    from dc_lesson.data import rollout
+    demos = data.load_demos(task, n_trajectories=n_demos)
+    start_pi = _start_policy(task, demos)
+    t0 = time.perf_counter()
+    result = MODULES[name].train(task, demos, config, policy=copy.deepcopy(start_pi),
+                                 progress=False)
+    seconds = time.perf_counter() - t0
+    learned = rollout.returns(rollout.collect(task, result.policy, 10, seed=2024,
+                                              progress=False))
+    start = rollout.returns(rollout.collect(task, start_pi, 10, seed=2024, progress=False))
+    test = stats.permutation_test((learned, start),
+                                  lambda x, y, axis: x.mean(axis) - y.mean(axis),
+                                  permutation_type="independent", alternative="greater",
+                                  n_resamples=9999, vectorized=True, rng=0)
+    gain = learned.mean() - start.mean()
+    print(f"\n{name.upper()} {task}: {seconds:.0f} s; learned {learned.mean():.0f} ± "
+          f"{learned.std():.0f}, start {start.mean():.0f} ± {start.std():.0f}; gain {gain:.0f};"
+          f" p = {test.pvalue:.4f}")
+    assert test.pvalue < 0.05
+    assert gain >= min_gain
+    return result
+
+
+# DRIL on cartpole from a fresh policy (mean action 0: return about 620 on these episodes), 30k
+# interactions, 16 BC steps per iteration: measured 1000 ± 0 against 618 ± 46, in 44 s.
+DRIL_LEARN = dril.DRILConfig(ppo=_learning_ppo(30_000), ensemble_epochs=20, bc_steps=16,
+                             value_warmup=0, seed=0)
+
+
+def test_dril_improves_on_its_start_on_cartpole():
+    _gain_test("dril", "cartpole", DRIL_LEARN, min_gain=250)
+
+
+# NDI on reacher1 from a fresh policy (it stays still: return 0), 40k interactions with the
+# module's defaults: measured 940 ± 31 against 0 ± 0, 117 s on a machine at load 6 (two cores).
+NDI_LEARN = ndi.NDIConfig(ppo=_learning_ppo(40_000), value_warmup=0, seed=0)
+
+
+def test_ndi_improves_on_its_start_on_reacher1():
+    _gain_test("ndi", "reacher1", NDI_LEARN, min_gain=300)
+
+
+# GPRIL's two halves.  Without the predecessor term (w = 0) the loop is BC on the expert's pairs,
+# and it learns cartpole from a fresh policy: measured 1000 ± 0 against 618 ± 46 in 18 s (20k
+# interactions).  With the paper's predecessor term (w = 1) the same run ended at 425 ± 15, below
+# its start (predecessors sampled from flows of a poor learner's experience carry that learner's
+# own actions); 30k interactions from an unnormalised start gave 261 against 646.  That is marked
+# as an expected failure, the DC paper's "no meaningful results", not hidden.
+GPRIL_LEARN = gpril.GPRILConfig(total_steps=20_000, episode_steps=200, seed=0)
+
+
+def test_gpril_without_predecessors_is_bc_and_learns_cartpole():
+    _gain_test("gpril", "cartpole", dataclasses.replace(GPRIL_LEARN, predecessor_weight=0.0),
+               min_gain=250)
+
+
+@pytest.mark.xfail(reason="GPRIL with its predecessor term (w = 1) fell below its start on "
+                          "cartpole (measured 425 against 618); see the comment above",
+                   strict=False)
+def test_gpril_improves_on_its_start_on_cartpole():
+    _gain_test("gpril", "cartpole", GPRIL_LEARN, min_gain=250)
+
+
+# PWIL did not learn on the cheap tasks within the budget, and the test says so.  Its kernel
+# exp(-5 T c / sqrt(d)) is a few expert standard deviations wide, and the expert's states on
+# these tasks barely vary (a reacher at its target, a balanced cartpole): every pair of a fresh
+# policy, and most of a noisy PPO learner's, lie hundreds of standard deviations away, where the
+# reward is 0 to float precision.  Measured: reacher1 from a fresh policy 0 ± 2 against 0 ± 0
+# (40k interactions, mean reward 0.000); from the BC warm start 582 ± 475 against 578 ± 472
+# (std_floor 0.1: 585); cartpole from a fresh unnormalised policy 334 ± 72 against 646 (60k).
+PWIL_LEARN = pwil.PWILConfig(ppo=_learning_ppo(40_000), value_warmup=0, seed=0)
+
+
+@pytest.mark.xfail(reason="PWIL's reward is 0 almost everywhere on reacher1 and cartpole; see "
+                          "the measured runs above", strict=False)
+def test_pwil_improves_on_its_start_on_reacher1():
+    _gain_test("pwil", "reacher1", PWIL_LEARN, min_gain=300)

@@ -56,6 +56,11 @@ Choices the papers leave open (each a field of :class:`GPRILConfig`):
   the likelihood (nothing else sets it, so exploration shrinks as the policy fits).
 * Predecessor actions are clipped to the bounds before their log-likelihood.
 
+What it gives on cartpole (``tests/test_baselines.py``, measured, 20k interactions from a
+fresh policy at 618): with w = 0 (BC inside this loop) 1000; with w = 1, 425.  Early on, the
+predecessors of expert states are drawn from flows of a poor learner's own experience, so they
+carry that learner's actions.
+
 Determinism: ``seed`` decides the initialisations, one generator for actions and episodes'
 seeds, one for the buffer's tuples and the flows' samples, and one for the expert minibatches.
 A checkpoint holds the networks, optimisers, generators, environments and the buffer.

@@ -51,6 +51,9 @@ Choices (each a field of :class:`NDIConfig`):
 * PPO with GAIL's settings, the frozen expert normaliser and the critic warm-up
   (:mod:`dc_lesson.algorithms._reward_ppo`); NDI used SAC.
 
+What it gives on reacher1 (``tests/test_baselines.py``, measured): from a fresh policy that
+stays still (return 0), 940 after 40k interactions; from the BC warm start (578), 678.
+
 Determinism: ``seed`` decides the flow's fit, the network initialisation, PPO's generator and
 the episode seeds.  A resumed run refits q from the same seed (q is never updated afterwards,
 so it is the same density).
