@@ -51,6 +51,7 @@ import torch
 
 from dc_lesson import algorithms, data, evaluation, notebook
 from dc_lesson.algorithms import bc, dril, gpril, ndi, pwil
+from dc_lesson.storage import read_result
 
 BUDGET = notebook.start(
     "the live runs below are a few iterations long and their numbers mean nothing.")
@@ -314,6 +315,25 @@ for name, pi in (("BC", warm), *((n.upper(), r.policy) for n, r in live.items())
                       live_seconds[name.lower()] / live[name.lower()].log[-1]["steps"] * 1e5
                       if name != "BC" else math.nan)}
 pd.DataFrame(rows).T.round(3)
+
+# %% [markdown]
+# ## What each costs
+#
+# `python -m dc_lesson.perf.learners --out data/results/learner_cost.json` ran GAIL, DC and the
+# four on `reacher4` at their `lesson` configurations for about 20,000 interactions each (whole
+# iterations; DC's two loops of a few iterations), one thread, from one BC warm start. The
+# table splits each run into its loop (collecting, rewarding, updating) and its setup (DRIL's
+# ensemble, NDI's flow, DC's flow fits and the learner episodes its refit samples), and
+# **extrapolates** to 100,000 interactions as the setup once plus the loop's cost per
+# interaction. The machine was shared (the load average at each run's start is beside it), so
+# read the ratios, not the seconds.
+
+# %%
+cost = read_result("learner_cost.json")
+print(f"{cost['task']}, {cost['budget']} configurations, {cost['threads']} thread; "
+      f"revision {cost['revision'][:10]}")
+pd.DataFrame(cost["rows"]).set_index("learner")[
+    ["env_steps", "setup_seconds", "loop_seconds", "seconds_per_100k", "load_average"]].round(1)
 
 # %% [markdown]
 # ## Stored results (placeholder)

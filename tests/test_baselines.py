@@ -16,8 +16,7 @@ from dc_lesson import data
 from dc_lesson.algorithms import dril, gpril, ndi, ppo, pwil
 from dc_lesson.algorithms.dc import RewardScale
 from dc_lesson.nn.policies import PolicyFileError
-
-TIMING = {"steps_per_second"}
+from test_gail import _same_log, _same_state   # logs equal but for timing; state_dicts equal
 
 
 # -- DRIL ----------------------------------------------------------------------------------------
@@ -275,18 +274,6 @@ def _tiny(name, total_steps=512, seed=3):
 MODULES = {"dril": dril, "pwil": pwil, "ndi": ndi, "gpril": gpril}
 
 
-def _same_log(a, b):
-    np.testing.assert_equal([{k: v for k, v in r.items() if k not in TIMING} for r in a],
-                            [{k: v for k, v in r.items() if k not in TIMING} for r in b])
-
-
-def _same_state(a, b):
-    sa, sb = a.state_dict(), b.state_dict()
-    assert sa.keys() == sb.keys()
-    for k in sa:
-        assert torch.equal(sa[k], sb[k]), k
-
-
 @pytest.mark.parametrize("name", list(MODULES))
 def test_checkpoint_resume_equals_an_uninterrupted_run(name, demos1, tmp_path):
     # 10 iterations of 2 x 64 steps cross the 1000-step episode end, and the stop after
@@ -433,3 +420,13 @@ PWIL_LEARN = pwil.PWILConfig(ppo=_learning_ppo(40_000), value_warmup=0, seed=0)
                           "the measured runs above", strict=False)
 def test_pwil_improves_on_its_start_on_reacher1():
     _gain_test("pwil", "reacher1", PWIL_LEARN, min_gain=300)
+
+
+def test_learner_cost_benchmark_reports_setup_and_loop():
+    from dc_lesson.perf import learners
+    out = learners.learner_costs("reacher1", ["pwil"], 2048, "smoke", warm_start_epochs=1)
+    row, = out["rows"]
+    assert row["learner"] == "pwil" and row["env_steps"] == 2048
+    assert 0 < row["loop_seconds"] <= row["seconds"] + 1e-9
+    assert row["seconds_per_100k"] == pytest.approx(
+        row["setup_seconds"] + row["loop_seconds"] / 2048 * 1e5)

@@ -118,7 +118,7 @@ def _gail_ppo_default() -> _ppo.PPOConfig:
 
 
 @dataclasses.dataclass(frozen=True)
-class GAILConfig:
+class GAILConfig(_reward_ppo.PPOImitationConfig):
     """Every knob of GAIL.  PPO's own knobs (and the run's length, ``ppo.total_steps``) live in
     ``ppo``; ``seed`` here is the run's one seed (``ppo.seed`` is ignored)."""
 
@@ -170,18 +170,7 @@ class GAILConfig:
         return dataclasses.replace(self, ppo=dataclasses.replace(self.ppo, lr=float(lr)),
                                    disc_lr=float(lr))
 
-    def with_steps(self, total_steps: int) -> "GAILConfig":
-        """The same configuration for ``total_steps`` environment interactions."""
-        return dataclasses.replace(self, ppo=dataclasses.replace(self.ppo,
-                                                                 total_steps=int(total_steps)))
-
-    def to_dict(self) -> dict:
-        d = dataclasses.asdict(self)
-        d["ppo"] = json.loads(self.ppo_config.to_json())
-        return json.loads(json.dumps(d))
-
-    def to_json(self) -> str:
-        return json.dumps(self.to_dict(), sort_keys=True)
+    # with_steps, to_dict and to_json: _reward_ppo.PPOImitationConfig's.
 
 
 def sized(total_steps: int, seed: int = 0, lr: float | None = None,
