@@ -278,9 +278,9 @@ x, c = torch.randn(1, 2), torch.randn(1, 1)
 jac = torch.autograd.functional.jacobian(lambda v: maf.to_base(v[None], c)[0][0], x[0])
 u = maf.to_base(x, c)[0][0]
 direct = torch.distributions.Normal(0.0, 1.0).log_prob(u).sum() + torch.slogdet(jac)[1]
-print(f"MAF log p = {float(maf.log_prob(x, c)):.5f}; change of variables by hand "
+print(f"MAF log p = {float(maf.log_prob(x, c).detach()):.5f}; change of variables by hand "
       f"{float(direct):.5f}; Jacobian (upper entry {float(jac[0, 1]):.1e}: triangular)")
-assert abs(float(maf.log_prob(x, c)) - float(direct)) < 1e-4
+assert abs(float(maf.log_prob(x, c).detach()) - float(direct.detach())) < 1e-4
 j = gpril.sample_horizons(100_000, 0.9, torch.Generator().manual_seed(0)).double()
 print(f"horizons: mean {float(j.mean()):.2f} (1/(1-γ) = 10), var {float(j.var()):.1f} "
       f"(γ/(1-γ)² = 90)")
@@ -329,10 +329,10 @@ pd.DataFrame(rows).T.round(3)
 # read the ratios, not the seconds.
 
 # %%
-cost = read_result("learner_cost.json")
-print(f"{cost['task']}, {cost['budget']} configurations, {cost['threads']} thread; "
-      f"revision {cost['revision'][:10]}")
-pd.DataFrame(cost["rows"]).set_index("learner")[
+cost_record = read_result("learner_cost.json")
+print(f"{cost_record['task']}, {cost_record['budget']} configurations, "
+      f"{cost_record['threads']} thread; revision {cost_record['revision'][:10]}")
+pd.DataFrame(cost_record["rows"]).set_index("learner")[
     ["env_steps", "setup_seconds", "loop_seconds", "seconds_per_100k", "load_average"]].round(1)
 
 # %% [markdown]
