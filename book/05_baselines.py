@@ -319,7 +319,7 @@ pd.DataFrame(rows).T.round(3)
 # %% [markdown]
 # ## What each costs
 #
-# `python -m dc_lesson.perf.learners --out data/results/learner_cost.json` ran GAIL, DC and the
+# `python -m dc_lesson.perf.cost --out data/results/learner_cost.json` ran GAIL, DC and the
 # four on `reacher4` at their `lesson` configurations for about 20,000 interactions each (whole
 # iterations; DC's two loops of a few iterations), one thread, from one BC warm start. The
 # table splits each run into its loop (collecting, rewarding, updating) and its setup (DRIL's

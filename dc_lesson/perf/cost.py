@@ -1,4 +1,4 @@
-"""What each learner costs: ``python -m dc_lesson.perf.learners --out FILE``.
+"""What each learner costs: ``python -m dc_lesson.perf.cost --out FILE``.
 
 Every learner of the registry that uses PPO's environments (GAIL, DC, DRIL, PWIL, NDI, GPRIL)
 runs on one task (``reacher4`` by default) at its ``lesson`` configuration, cut to about
@@ -78,7 +78,7 @@ def learner_costs(task: str = "reacher4", names=LEARNERS, steps: int = 20_000,
 
 
 def main(argv=None) -> dict:
-    p = argparse.ArgumentParser(prog="python -m dc_lesson.perf.learners", description=__doc__
+    p = argparse.ArgumentParser(prog="python -m dc_lesson.perf.cost", description=__doc__
                                 .split("\n")[0])
     p.add_argument("--task", default="reacher4")
     p.add_argument("--steps", type=int, default=20_000)
@@ -89,7 +89,7 @@ def main(argv=None) -> dict:
     out = learner_costs(args.task, args.learners, args.steps)
     if args.out:
         write_result(args.out, {"benchmark": "learner_cost", **out},
-                     command="python -m dc_lesson.perf.learners " + " ".join(argv or sys.argv[1:]),
+                     command="python -m dc_lesson.perf.cost " + " ".join(argv or sys.argv[1:]),
                      seeds=[0])
     return out
 
