@@ -53,7 +53,9 @@ def test_every_learner_trains_through_the_registry(name, demos):
     assert isinstance(result.policy, GaussianPolicy)
     assert result.log and all(isinstance(r, dict) for r in result.log)
     expected_models = {"bc": set(), "ppo": {"value"}, "gail": {"discriminator", "value"},
-                       "dc": {"flow", "value"}}[name]
+                       "dc": {"flow", "value"}, "dril": {"ensemble", "value"},
+                       "pwil": {"value"}, "ndi": {"flow", "value"},
+                       "gpril": {"state_flow", "action_flow"}}[name]
     assert set(result.models) == expected_models
     # same seed, same parameters; another seed, others
     again = _run(name, demos)
@@ -62,7 +64,7 @@ def test_every_learner_trains_through_the_registry(name, demos):
     assert not torch.equal(_vector(result.policy), _vector(other.policy))
 
 
-@pytest.mark.parametrize("name", ["gail", "dc"])
+@pytest.mark.parametrize("name", ["gail", "dc", "dril", "pwil", "ndi", "gpril"])
 def test_learners_refuse_a_policy_or_demos_of_another_task(name, demos):
     with pytest.raises(algorithms.LearnerInputError, match="policy is built for"):
         _run(name, demos, policy=GaussianPolicy(5, 1))

@@ -1,11 +1,15 @@
 """The learners: one module per algorithm, one interface, and the registry by name.
 
-======== ===========================================================================
-``bc``   behaviour cloning: maximum likelihood on the expert's pairs (Eq. 1)
-``ppo``  proximal policy optimisation on the task's reward (or any reward function)
-``gail`` GAIL: a discriminator's reward, optimised with PPO
-``dc``   Distributional Cloning: BC and PPO on a SoftFlow reward, combined by ADMM
-======== ===========================================================================
+========= ===========================================================================
+``bc``    behaviour cloning: maximum likelihood on the expert's pairs (Eq. 1)
+``ppo``   proximal policy optimisation on the task's reward (or any reward function)
+``gail``  GAIL: a discriminator's reward, optimised with PPO
+``dc``    Distributional Cloning: BC and PPO on a SoftFlow reward, combined by ADMM
+``dril``  DRIL: PPO on a BC ensemble's disagreement (+1 / -1), interleaved with BC steps
+``pwil``  PWIL: PPO on the reward of a greedy Wasserstein coupling to the expert's atoms
+``ndi``   NDI: PPO on a SoftFlow's log q(s, a) of the expert, plus a state-entropy bonus
+``gpril`` GPRIL: likelihood on expert pairs and on predecessors sampled from MAFs
+========= ===========================================================================
 
 Every learner is called the same way (:mod:`dc_lesson.algorithms.base`)::
 
@@ -24,7 +28,7 @@ from __future__ import annotations
 import dataclasses
 from typing import Callable
 
-from dc_lesson.algorithms import base, bc, dc, gail, ppo
+from dc_lesson.algorithms import base, bc, dc, dril, gail, gpril, ndi, ppo, pwil
 from dc_lesson.algorithms.base import LearnerInputError, TrainResult
 
 
@@ -49,6 +53,14 @@ ALGORITHMS: dict[str, Algorithm] = {
                       "GAIL: a discriminator's reward optimised with PPO"),
     "dc": Algorithm("dc", dc.train, dc.DCConfig, dc.preset,
                     "Distributional Cloning: BC + PPO on a SoftFlow reward, by ADMM"),
+    "dril": Algorithm("dril", dril.train, dril.DRILConfig, dril.preset,
+                      "DRIL: PPO on a BC ensemble's disagreement, interleaved with BC"),
+    "pwil": Algorithm("pwil", pwil.train, pwil.PWILConfig, pwil.preset,
+                      "PWIL: PPO on a greedy Wasserstein coupling's reward"),
+    "ndi": Algorithm("ndi", ndi.train, ndi.NDIConfig, ndi.preset,
+                     "NDI: PPO on a SoftFlow's log q(s, a) plus a kNN state-entropy bonus"),
+    "gpril": Algorithm("gpril", gpril.train, gpril.GPRILConfig, gpril.preset,
+                       "GPRIL: likelihood on expert pairs and MAF-sampled predecessors"),
 }
 
 
@@ -69,4 +81,5 @@ def get(name: str) -> Algorithm:
 
 
 __all__ = ["ALGORITHMS", "Algorithm", "LearnerInputError", "TrainResult",
-           "UnknownAlgorithmError", "base", "bc", "dc", "gail", "get", "ppo"]
+           "UnknownAlgorithmError", "base", "bc", "dc", "dril", "gail", "get", "gpril", "ndi",
+           "ppo", "pwil"]

@@ -101,6 +101,7 @@ from torch import nn
 from dc_lesson import progress as _progress
 from dc_lesson import timing as _timing
 from dc_lesson import tasks as _tasks
+from dc_lesson.algorithms import _reward_ppo
 from dc_lesson.algorithms import bc as _bc
 from dc_lesson.algorithms import ppo as _ppo
 from dc_lesson.algorithms.base import TrainResult, check_inputs, load_run, save_run
@@ -115,12 +116,12 @@ def _gail_ppo_default() -> _ppo.PPOConfig:
     # PPO for GAIL: larger batches and fewer, larger minibatches than PPOConfig's defaults;
     # 40 gradient steps per 4096 pairs instead of 320 per 2048 (the update, not the simulator,
     # is what costs here), a smaller learning rate so the BC start is refined, not replaced.
-    return _ppo.PPOConfig(n_envs=8, n_steps=512, n_epochs=5, n_minibatches=8, lr=3e-4,
-                          total_steps=300_000, ent_coef=0.0)
+    # DRIL, PWIL and NDI share these settings (_reward_ppo.imitation_ppo_default).
+    return _reward_ppo.imitation_ppo_default()
 
 
 @dataclasses.dataclass(frozen=True)
-class GAILConfig:
+class GAILConfig(_reward_ppo.PPOImitationConfig):
     """Every knob of GAIL.  PPO's own knobs (and the run's length, ``ppo.total_steps``) live in
     ``ppo``; ``seed`` here is the run's one seed (``ppo.seed`` is ignored)."""
 
@@ -174,18 +175,7 @@ class GAILConfig:
         return dataclasses.replace(self, ppo=dataclasses.replace(self.ppo, lr=float(lr)),
                                    disc_lr=float(lr))
 
-    def with_steps(self, total_steps: int) -> "GAILConfig":
-        """The same configuration for ``total_steps`` environment interactions."""
-        return dataclasses.replace(self, ppo=dataclasses.replace(self.ppo,
-                                                                 total_steps=int(total_steps)))
-
-    def to_dict(self) -> dict:
-        d = dataclasses.asdict(self)
-        d["ppo"] = json.loads(self.ppo_config.to_json())
-        return json.loads(json.dumps(d))
-
-    def to_json(self) -> str:
-        return json.dumps(self.to_dict(), sort_keys=True)
+    # with_steps, to_dict and to_json: _reward_ppo.PPOImitationConfig's.
 
 
 def sized(total_steps: int, seed: int = 0, lr: float | None = None,
@@ -195,15 +185,7 @@ def sized(total_steps: int, seed: int = 0, lr: float | None = None,
     A run shorter than four of the default batches (only at the ``smoke`` budget) collects
     smaller batches, so it still makes four iterations, and warms its critic up for one.
     """
-    cfg = base or GAILConfig()
-    p = cfg.ppo
-    if total_steps < 4 * p.batch_size:
-        n_steps = max(p.n_minibatches, total_steps // (4 * p.n_envs) // p.n_minibatches
-                      * p.n_minibatches)
-        p = dataclasses.replace(p, n_steps=n_steps)
-        cfg = dataclasses.replace(cfg, value_warmup=min(cfg.value_warmup, 1))
-    cfg = dataclasses.replace(cfg, ppo=dataclasses.replace(p, total_steps=int(total_steps)),
-                              seed=int(seed))
+    cfg = _reward_ppo.sized(base or GAILConfig(), total_steps, seed)
     return cfg if lr is None else cfg.with_lr(lr)
 
 
