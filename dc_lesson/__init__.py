@@ -3,9 +3,10 @@
 The package is layered; a module imports only from its own layer or the ones above it in this
 list (``tests/test_layers.py`` checks it):
 
-* ``budget``, ``storage``, ``progress``, ``checks``: the smoke / lesson / paper presets; where
-  the data folder is and how files are written (atomic, with provenance); progress bars; the
-  field checks every configuration makes at construction;
+* ``budget``, ``storage``, ``progress``, ``checks``, ``timing``: the smoke / lesson / paper
+  presets; where the data folder is and how files are written (atomic, with provenance);
+  progress bars; the field checks every configuration makes at construction; named phases a
+  run can time;
 * ``tasks``: the ten dm_control task ports; ``tasks.load`` gives a dm_env environment,
   ``gymnasium.make("dc_lesson/NAME-v0")`` a Gymnasium one, ``tasks.make`` the fast engine;
 * ``data``: typed, validated trajectories, the demonstrations on disk (sha256-checked),

@@ -18,7 +18,7 @@ PACKAGE = pathlib.Path(dc_lesson.__file__).parent
 # ``experts`` above ``algorithms`` (PPO trains the locomotion experts); ``experiments`` and
 # ``perf`` share a rank and never import each other.
 LAYERS = [
-    {"budget", "storage", "progress", "checks"},
+    {"budget", "storage", "progress", "checks", "timing"},
     {"tasks"},
     {"data"},
     {"nn"},
