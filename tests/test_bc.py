@@ -222,3 +222,21 @@ def test_warm_start_keeps_bcs_mean_and_resets_only_the_log_std():
     assert torch.equal(policy.distribution(obs).mean, plain.distribution(obs).mean)
     assert torch.all(policy.log_std == bc.WARM_START_LOG_STD)
     assert not torch.all(plain.log_std == bc.WARM_START_LOG_STD)
+
+
+def test_bc_on_every_demo_stops_on_the_other_demonstrations():
+    """stop_on_others: all 18 given episodes are trained on; the 7 others of the task (never
+    trained on) decide the early stop."""
+    import dataclasses as dc
+
+    from dc_lesson import algorithms
+    demos = data.load_demos("reacher1", n_trajectories=18)
+    cfg = dc.replace(bc.BCConfig(epochs=3, seed=0), val_fraction=0.0, stop_on_others=True)
+    res = algorithms.get("bc").train("reacher1", demos, cfg, progress=False)
+    meta = res.policy.meta
+    assert meta["train_episodes"] == list(range(18))      # every given episode trained on
+    assert len(meta["val_episodes"]) == 25 - 18            # the others validated on
+    assert all(np.isfinite(r["val_nll"]) for r in res.log)
+    with pytest.raises(ValueError, match="val_fraction=0"):
+        algorithms.get("bc").train("reacher1", demos, dc.replace(cfg, val_fraction=0.3),
+                                   progress=False)

@@ -294,3 +294,16 @@ def test_on_target_counts_what_the_reacher_reward_counts():
     assert out["share"] == pytest.approx(0.6)
     assert out["split"] == {"red": pytest.approx(2 / 3), "blue": pytest.approx(1 / 3)}
     assert bench_gail.on_target(np.zeros((3, 2)), 2) == {"share": 0.0, "split": None}
+
+
+def test_a_state_only_discriminator_ignores_actions(demos1):
+    """disc_actions=False: D(s) gives the same logit for any action, so the learner's action
+    noise cannot give it away; the run trains and repeats for its seed."""
+    disc = gail.Discriminator(8, 2, (16,), use_actions=False)
+    obs = torch.randn(10, 8)
+    assert torch.equal(disc(obs, torch.zeros(10, 2)), disc(obs, torch.ones(10, 2)))
+    cfg = dataclasses.replace(_tiny(), disc_actions=False)
+    a = gail.train("reacher1", demos1, cfg, progress=False)
+    b = gail.train("reacher1", demos1, cfg, progress=False)
+    assert a.models["discriminator"].config()["use_actions"] is False
+    _same_state(a.policy, b.policy)

@@ -86,6 +86,8 @@ class BCConfig:
     activation: str = "tanh"     # the hidden layers' activation
     log_std_init: float = -0.5   # initial log standard deviation of every action dimension
     norm_obs: bool = True        # observation normaliser in the policy, fitted on train states
+    stop_on_others: bool = False  # train() only: train on every demonstration given and stop
+    #                               early on the task's *other* demonstrations (val_fraction 0)
     policy: str = "gaussian"     # "gaussian" (GaussianPolicy) or "mixture" (nn.MixturePolicy)
     n_components: int = 4        # the mixture's components (policy="mixture" only)
     seed: int = 0                # the one seed: split, initial weights, minibatch order
@@ -246,7 +248,8 @@ def evaluate(policy: GaussianPolicy, obs, act, batch_size: int = 8192) -> dict[s
 
 # -- training ------------------------------------------------------------------------------------
 
-def train_bc(demos_or_trajectories, config: BCConfig = BCConfig(), progress: bool = True):
+def train_bc(demos_or_trajectories, config: BCConfig = BCConfig(), progress: bool = True,
+             validation=None):
     """Fits a :class:`GaussianPolicy` to expert pairs by Eq. 1 with early stopping.
 
     Args:
@@ -254,6 +257,9 @@ def train_bc(demos_or_trajectories, config: BCConfig = BCConfig(), progress: boo
             trajectories, or a list of ``(obs, act)`` pairs per episode (see :func:`episodes`).
         config: the hyperparameters and the seed.
         progress: show a progress bar over epochs.
+        validation: other expert episodes to stop early on (anything :func:`episodes`
+            accepts); then every training episode is trained on and ``config.val_fraction``
+            must be 0.
 
     Returns ``(policy, log)``.  ``log`` has one row per epoch: the training set's ``train_nll``
     and ``train_mse`` and the validation set's ``val_nll`` and ``val_mse`` (NaN without
@@ -270,6 +276,13 @@ def train_bc(demos_or_trajectories, config: BCConfig = BCConfig(), progress: boo
     train_obs, train_act = _stack(eps, train_idx)
     val_obs, val_act = (_stack(eps, val_idx) if len(val_idx)
                         else (torch.zeros(0, obs_dim), torch.zeros(0, act_dim)))
+    if validation is not None:
+        if config.val_fraction:
+            raise ValueError("give validation episodes or a val_fraction, not both (set "
+                             "val_fraction=0 to train on every episode)")
+        held = episodes(validation)
+        val_idx = np.arange(len(held))
+        val_obs, val_act = _stack(held, val_idx)
 
     # Seed the initialisation without changing the caller's global torch RNG.
     with torch.random.fork_rng(devices=[]):
@@ -384,12 +397,30 @@ def train(task: str, demos, config: BCConfig = BCConfig(), *, policy=None,
     BC fits from scratch (``policy`` must be None: it has no use for a start) and trains in
     seconds, so it keeps no checkpoint (``checkpoint`` must be None); ``callback(row, policy)``
     is called once per epoch *after* training, with the final policy, for the log's sake.
+
+    With ``config.stop_on_others`` BC trains on *all* of ``demos`` and stops early on the
+    task's demonstrations that are not among them (by episode seed): expert episodes no learner
+    trains on.  The 70/30 split of the default trains on 70% of what GAIL and DC see.
     """
     if policy is not None or checkpoint is not None:
         raise LearnerInputError("BC fits from scratch in seconds: it takes no starting policy "
                                 "and no checkpoint (pass policy=None, checkpoint=None)")
     check_inputs(task, demos, None)
-    pi, log = train_bc(demos, config, progress=progress)
+    validation = None
+    if config.stop_on_others:
+        if config.val_fraction:
+            raise LearnerInputError("stop_on_others trains on every demonstration: set "
+                                    "val_fraction=0")
+        from dc_lesson.data import store as _store
+        given = {t.seed for t in demos.trajectories}
+        variant = demos.manifest.get("variant") if hasattr(demos, "manifest") else None
+        others = [t for t in _store.load_demos(task, variant=variant).trajectories
+                  if t.seed not in given]
+        if not others:
+            raise LearnerInputError(f"stop_on_others needs demonstrations of {task} that are "
+                                    f"not trained on; all {len(given)} are")
+        validation = others
+    pi, log = train_bc(demos, config, progress=progress, validation=validation)
     if callback is not None:
         for row in log:
             if callback(row, pi):

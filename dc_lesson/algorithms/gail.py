@@ -128,6 +128,8 @@ class GAILConfig(_reward_ppo.PPOImitationConfig):
     ppo: _ppo.PPOConfig = dataclasses.field(default_factory=_gail_ppo_default)
     disc_hidden: tuple[int, ...] = (64, 64)   # hidden layer sizes of the discriminator MLP
     disc_activation: str = "tanh"   # its activation
+    disc_actions: bool = True       # D(s, a) (GAIL); False: D(s), a state-only discriminator
+    #                                 that the learner's action noise cannot give away
     disc_lr: float = 3e-4           # Adam's learning rate for the discriminator
     disc_steps: int = 8             # discriminator gradient steps per PPO iteration
     disc_batch: int = 512           # expert pairs and learner pairs in each of those steps
@@ -203,11 +205,16 @@ class Discriminator(nn.Module):
     :meth:`fit_input_stats` from the expert's pairs.
     """
 
-    def __init__(self, obs_dim: int, act_dim: int, hidden=(64, 64), activation: str = "tanh"):
+    def __init__(self, obs_dim: int, act_dim: int, hidden=(64, 64), activation: str = "tanh",
+                 use_actions: bool = True):
         super().__init__()
         self._config = dict(obs_dim=int(obs_dim), act_dim=int(act_dim),
-                            hidden=[int(h) for h in hidden], activation=activation)
-        dim = obs_dim + act_dim
+                            hidden=[int(h) for h in hidden], activation=activation,
+                            use_actions=bool(use_actions))
+        # State-only (use_actions=False): D(s) cannot tell expert from learner by the noise
+        # of the learner's sampled actions, only by where its states go.
+        self.use_actions = bool(use_actions)
+        dim = obs_dim + (act_dim if use_actions else 0)
         self.register_buffer("in_mean", torch.zeros(dim))
         self.register_buffer("in_std", torch.ones(dim))
         self.net = mlp(dim, hidden, 1, activation, out_gain=1.0)
@@ -219,14 +226,17 @@ class Discriminator(nn.Module):
     def fit_input_stats(self, obs, act, min_std: float = 1e-3) -> None:
         """Standardise inputs with the mean and std of these (expert) pairs; a dimension that
         barely varies in the expert's data gets ``min_std`` so it cannot blow up."""
-        x = torch.cat([torch.as_tensor(obs, dtype=torch.float32),
-                       torch.as_tensor(act, dtype=torch.float32)], -1)
+        x = torch.as_tensor(obs, dtype=torch.float32)
+        if self.use_actions:
+            x = torch.cat([x, torch.as_tensor(act, dtype=torch.float32)], -1)
         self.in_mean.copy_(x.mean(0))
         self.in_std.copy_(x.std(0).clamp_min(min_std))
 
     def inputs(self, obs, act) -> torch.Tensor:
         """The standardised, concatenated input; actions are clipped to the bounds first."""
         obs = torch.as_tensor(obs, dtype=torch.float32)
+        if not self.use_actions:
+            return (obs - self.in_mean) / self.in_std
         act = torch.as_tensor(act, dtype=torch.float32).clamp(ACTION_LOW, ACTION_HIGH)
         return (torch.cat([obs, act], -1) - self.in_mean) / self.in_std
 
@@ -375,7 +385,7 @@ def train(task: str, demos, config: GAILConfig = GAILConfig(), *,
             policy.update_obs_norm(e_obs)      # the expert's statistics, then frozen
         value_fn = ValueNetwork(spec.obs_dim, pcfg.hidden, norm_obs=policy.obs_norm is not None)
         disc = Discriminator(spec.obs_dim, spec.act_dim, config.disc_hidden,
-                             config.disc_activation)
+                             config.disc_activation, use_actions=config.disc_actions)
     if value_fn.obs_norm is not None:        # one input scale for policy and critic, frozen
         value_fn.obs_norm.load_state_dict(policy.obs_norm.state_dict())
     disc.fit_input_stats(e_obs, e_act)
