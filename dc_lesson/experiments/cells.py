@@ -11,9 +11,10 @@ first 12 hex digits of the SHA-256 of its canonical JSON.  A cell whose file exi
 same hash is never recomputed: change anything in the config and the cell is new, change
 nothing and a rerun skips it.
 
-A record holds ``cell`` (the identity), ``config``, ``result`` (the numbers) and
-``provenance`` (command, revision, budget, torch threads, wall time, host, time).  Reruns of
-a cell give an identical ``cell``, ``config`` and ``result``; only ``provenance`` differs.
+A record holds ``cell`` (the identity), ``config``, ``result`` (the numbers), ``timing`` (the
+run's wall-clock figures, kept apart: :func:`split_timing`) and ``provenance`` (command,
+revision, budget, torch threads, wall time, host, time).  Reruns of a cell give an identical
+``cell``, ``config`` and ``result``; only ``timing`` and ``provenance`` differ.
 Files are written atomically (a temporary file and a rename: a killed sweep never leaves half
 a record), the ``.npz`` first so a record never points at missing features, and read back with
 checks (``allow_pickle=False``; a record whose name and content disagree is refused).
@@ -130,12 +131,53 @@ def features_path(json_path) -> pathlib.Path:
     return pathlib.Path(json_path).with_suffix(".npz")
 
 
+def _is_timing(key: str) -> bool:
+    return "seconds" in key or "per_second" in key
+
+
+def split_timing(result):
+    """``(numbers, timing)``: wall-clock entries (keys naming seconds) apart from the numbers
+    the seed decides, keeping the nesting; a rerun repeats the first, never the second."""
+    if isinstance(result, dict):
+        numbers, timing = {}, {}
+        for k, v in result.items():
+            if _is_timing(k):
+                timing[k] = v
+                continue
+            n, t = split_timing(v)
+            numbers[k] = n
+            if t:
+                timing[k] = t
+        return numbers, timing
+    if isinstance(result, list) and any(isinstance(x, dict) for x in result):
+        parts = [split_timing(x) for x in result]
+        return [p[0] for p in parts], ([p[1] for p in parts] if any(p[1] for p in parts)
+                                       else {})
+    return result, {}
+
+
+def merged(numbers, timing):
+    """The result with its timing put back (what :func:`split_timing` took apart)."""
+    if isinstance(numbers, dict) and isinstance(timing, dict):
+        return {**{k: merged(v, timing.get(k, {})) for k, v in numbers.items()},
+                **{k: v for k, v in timing.items() if k not in numbers}}
+    if isinstance(numbers, list) and isinstance(timing, list):
+        return [merged(n, t) for n, t in zip(numbers, timing)]
+    return numbers
+
+
+def full_result(record: dict) -> dict:
+    return merged(record["result"], record.get("timing", {}))
+
+
 def write_record(cell: Cell, result: dict, features: dict | None, provenance: dict,
                  root=None) -> pathlib.Path:
-    """Writes the cell's record (and its features first) atomically; returns the JSON path."""
+    """Writes the cell's record (and its features first) atomically; returns the JSON path.
+    Wall-clock entries of ``result`` go to ``timing`` (:func:`split_timing`)."""
     path = cell.path(root)
-    record = {"cell": cell.identity(), "config": cell.config,
-              "result": json.loads(json.dumps(result, default=_jsonable)),
+    numbers, timing = split_timing(json.loads(json.dumps(result, default=_jsonable)))
+    record = {"cell": cell.identity(), "config": cell.config, "result": numbers,
+              "timing": timing,
               "features_file": features_path(path).name if features else None,
               "provenance": provenance}
     if features:
@@ -238,6 +280,6 @@ class Study:
         return sorted(out.values(), key=lambda c: c.stage)
 
 
-__all__ = ["Cell", "CellError", "Study", "canonical", "cells_root", "config_hash", "is_done",
-           "load", "make_cell", "provenance", "read_features", "read_record", "records",
+__all__ = ["Cell", "CellError", "Study", "canonical", "cells_root", "config_hash", "full_result",
+           "is_done", "load", "make_cell", "merged", "split_timing", "provenance", "read_features", "read_record", "records",
            "write_record"]

@@ -125,11 +125,10 @@ def expert_eval_seed(seed: int) -> int:
 
 def reference_cell(task: str, episodes: int = REFERENCE_EPISODES, seed: int = REFERENCE_SEED):
     from dc_lesson.experiments import cells
-    from dc_lesson.experts import load_expert
-    _, info = load_expert(task)
+    expert = _data.manifest_entry(task)["expert"]["name"]   # the demonstrations' expert
     return cells.make_cell(REFERENCE_STUDY, "expert", task, 0, seed,
                            {"kind": "fresh expert episodes", "episodes": int(episodes),
-                            "episode_seed": int(seed), "expert": info.get("name", "")},
+                            "episode_seed": int(seed), "expert": expert},
                            stage=0)
 
 

@@ -95,6 +95,63 @@ def measured_costs(root=None) -> dict[tuple, list[float]]:
     return out
 
 
+def legacy_costs(results=None) -> dict[tuple, list[float]]:
+    """Per-run wall seconds from the whole-grid result files that ``dc-lesson bench`` wrote
+    before the cells (a file that is already an aggregate is skipped), keyed as
+    :func:`measured_costs`: the estimate of a study no cell of which has run yet."""
+    import json
+    base = pathlib.Path(results or _cells.cells_root().parent)
+    out: dict[tuple, list[float]] = {}
+
+    def read(name):
+        try:
+            r = json.loads((base / name).read_text())
+        except (OSError, ValueError):
+            return None
+        return None if "cells" in r else r
+
+    def add(row, task, budget, s):
+        out.setdefault((row, task, budget), []).append(float(s))
+    if r := read("bc_demos.json"):
+        for x in r["runs"]:
+            add("bc", x["task"], r["budget"], x["train_seconds"] + x["eval_seconds"]
+                + x["measure_seconds"])
+    if r := read("gail_modes.json"):
+        for x in r["runs"]:
+            add("gail", x["task"], r["budget"], x["wall_seconds"])
+    if r := read("dc_modes.json"):
+        for x in r["runs"]:
+            add("dc", x["task"], r["budget"], x["bc"]["seconds"] + x["dc"]["train_seconds"])
+    if r := read("gail_lr.json"):
+        bc = {x["seed"]: x["seconds"] for x in r["bc"]["runs"]}
+        for x in r["runs"]:
+            add(f"gail-lr={x['lr']:g}", r["task"], r["budget"], x["seconds"] + bc[x["seed"]])
+    if r := read("dc_lr.json"):
+        for x in r["runs"]:
+            add(f"dc-lr={x['lr']:g}", r["task"], r["budget"],
+                x["bc"]["seconds"] + x["dc"]["train_seconds"])
+    if r := read("dc_ablation.json"):
+        for x in r["loops"]:
+            row = ("dc-loops=" + x["label"].split("= ")[1] if x["label"].startswith("L =")
+                   else "dc-loops=1-long")
+            add(row, r["task"], r["budget"], x["bc"]["seconds"] + x["dc"]["train_seconds"])
+        for x in r["admm"]:
+            add("dc-update=admm", r["task"], r["budget"],
+                x["bc"]["seconds"] + x["dc"]["train_seconds"])
+    if r := read("bc_drift.json"):
+        per = r["wall_seconds"] / max(1, len(r["per_seed"])) / (len(r["demo_counts"]) + 1)
+        for x in r["per_seed"]:
+            for row in ("bc", "expert"):
+                add(row, x["task"], r["budget"], per)
+    if r := read("softflow_fit.json"):
+        for x in r["toy"]["runs"]:
+            add(f"softflow-sigma={x['sigma_max']:g}", "circle", r["budget"], x["seconds"])
+        for task, v in r["tasks"].items():
+            for x in v["runs"]:
+                add(f"softflow-sigma={x['sigma_max']:g}", task, r["budget"], x["seconds"])
+    return out
+
+
 def estimate(cell: _cells.Cell, costs: dict, budget_name: str) -> float | None:
     """The median measured wall time of cells like this one (same row, task and budget; else
     the same learner and task), or None when none has run."""
@@ -114,7 +171,7 @@ def _fmt_s(s: float | None) -> str:
 def plan(study: _cells.Study, b: _budget.Budget, only=(), root=None, workers: int = 1) -> dict:
     """What a sweep would do: every cell, done or not, the estimated cost of the rest."""
     grid = select(study.grid(b), only)
-    costs = measured_costs(root)
+    costs = {**legacy_costs(), **measured_costs(root)}   # cells win over the old files
     todo = [c for c in grid if not _cells.is_done(c, root)]
     est = [estimate(c, costs, b.name) for c in todo]
     known = [e for e in est if e is not None]
@@ -281,4 +338,4 @@ def _eta(left, walls, costs, b, workers) -> float | None:
 
 
 __all__ = ["ONLY_KEYS", "SweepError", "SweepReport", "check_writable", "estimate", "execute",
-           "format_plan", "measured_costs", "plan", "run", "select", "start_ray"]
+           "format_plan", "legacy_costs", "measured_costs", "plan", "run", "select", "start_ray"]

@@ -70,8 +70,8 @@ def run_cell(cell, needs):
 def aggregate(records, budget) -> dict:
     obs = [_agg.observation(r, r["result"]["measures"]) for r in records]
     bc_obs = [o for o in obs if o["row"] == "bc"]
-    runs = [{**{k: r["result"][k] for k in r["result"] if k != "measures"},
-             **r["result"]["measures"]} for r in records if r["cell"]["learner"] == "bc"]
+    full = [cells.full_result(r) for r in records if r["cell"]["learner"] == "bc"]
+    runs = [{**{k: x[k] for k in x if k != "measures"}, **x["measures"]} for x in full]
     summary = _agg.table(bc_obs)
     timing = _bench.summarise(runs)   # the wall times and epochs chapter 01 prints
     for s in summary:

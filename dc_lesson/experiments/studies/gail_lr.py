@@ -1,0 +1,30 @@
+"""GAIL against its learning rate, as cells (the paper's Figure 4 for GAIL; ``gail_lr.json``).
+
+Cells: on ``halfcheetah``, per learning rate of ``budget.lr_sweep_lrs`` (one rate for the policy,
+its critic and the discriminator) and seed of ``budget.seeds_for("halfcheetah")``, GAIL from the
+seed's BC warm start for ``budget.lr_sweep_steps`` interactions (variant ``lr=...``).
+"""
+
+from dc_lesson.experiments import cells
+from dc_lesson.experiments.studies import _common, _imitation as _im
+from dc_lesson.experiments.studies.gail_modes import gail_cell, run_gail
+
+NAME = "gail_lr"
+
+
+def cells_at(b):
+    return [gail_cell(NAME, _im.LR_TASK, s, b, lr=lr, steps=b.lr_sweep_steps, variant=f"lr={lr:g}")
+            for lr in b.lr_sweep_lrs for s in b.seeds_for(_im.LR_TASK)]
+
+
+def aggregate(recs, b):
+    from dc_lesson.experiments import aggregate as _agg
+    out = _im.standard_aggregate(recs, b)
+    rows = sorted({o["row"] for o in out["observations"] if o["row"] != "bc"})
+    out["paired"] = [p for r in rows for p in _agg.paired(out["observations"], r, "bc")]
+    return out
+
+
+STUDY = cells.Study(NAME, "GAIL's final return per learning rate (Figure 4)", cells=cells_at,
+                    run_cell=lambda c, n: _common.run_expert_or(c, n, run_gail),
+                    aggregate=aggregate, result_file="gail_lr.json")
