@@ -14,7 +14,8 @@ its BC warm start and GAIL).  Then
   stratified interval (where the paper's aggregate is across tasks).
 
 The aggregate goes to ``data/results/STUDY.json`` with the command, budget, revision and time,
-and the names, revisions and summed wall time of the cells it was made from.  Only cells of the
+and the count, revisions and summed wall time of the cells it was made from (``wall_seconds``:
+the cells' compute, one worker's worth, whatever the number of workers that ran them).  Only cells of the
 study's current grid count (a record left from an older config is ignored, not mixed in).
 """
 
@@ -147,6 +148,7 @@ def write(study_name: str, b: _budget.Budget | None = None, *, root=None, result
                         "wall_seconds": float(sum(r["provenance"]["wall_seconds"]
                                                   for r in recs)),
                         "folder": f"results/cells/{study.name}"},
+              "wall_seconds": float(sum(r["provenance"]["wall_seconds"] for r in recs)),
               **payload}
     storage.atomic_write_text(path, json.dumps(record, indent=1, default=float) + "\n")
     return path

@@ -1,5 +1,7 @@
 """What the studies share: input errors, evaluation seeds that never replay a demonstration,
-and the mode features stored beside a result file (an ``.npz``, no pickles)."""
+the mode features stored beside a result file (an ``.npz``, no pickles), and the protocol of
+the cell studies: the fresh expert reference every learner is scored against and the expert
+row (expert vs expert: the floor of every measure; see the section below)."""
 
 from __future__ import annotations
 

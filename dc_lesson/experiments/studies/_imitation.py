@@ -121,5 +121,14 @@ def standard_aggregate(records, b, rows_paired=()) -> dict:
             "protocol": protocol_config(b), "observations": obs}
 
 
+def versus_start_aggregate(records, b) -> dict:
+    """:func:`standard_aggregate` with every learner row paired with the BC start (the
+    learning-rate sweeps: each rate against the seed's warm start)."""
+    out = standard_aggregate(records, b)
+    rows = sorted({o["row"] for o in out["observations"] if o["row"] not in ("bc", "expert")})
+    out["paired"] = [p for r in rows for p in _agg.paired(out["observations"], r, "bc")]
+    return out
+
+
 def expert_rows(study: str, tasks, b):
     return _common.expert_rows(study, tasks, b, b.il_eval_episodes)

@@ -13,7 +13,6 @@ from __future__ import annotations
 import dataclasses
 import json
 
-from dc_lesson import budget as _budget
 from dc_lesson.algorithms.dc import preset as dc_config
 from dc_lesson.experiments import cells, dc as _bench
 from dc_lesson.experiments.studies import _common, _imitation as _im

@@ -17,14 +17,6 @@ def cells_at(b):
             for lr in b.lr_sweep_lrs for s in b.seeds_for(_im.LR_TASK)]
 
 
-def aggregate(recs, b):
-    from dc_lesson.experiments import aggregate as _agg
-    out = _im.standard_aggregate(recs, b)
-    rows = sorted({o["row"] for o in out["observations"] if o["row"] != "bc"})
-    out["paired"] = [p for r in rows for p in _agg.paired(out["observations"], r, "bc")]
-    return out
-
-
 STUDY = cells.Study(NAME, "GAIL's final return per learning rate (Figure 4)", cells=cells_at,
                     run_cell=lambda c, n: _common.run_expert_or(c, n, run_gail),
-                    aggregate=aggregate, result_file="gail_lr.json")
+                    aggregate=_im.versus_start_aggregate, result_file="gail_lr.json")
