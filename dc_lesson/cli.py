@@ -27,6 +27,7 @@ Sizes follow ``DC_LESSON_BUDGET`` (smoke | lesson | paper); see ``dc_lesson.budg
 from __future__ import annotations
 
 import argparse
+import os
 import pathlib
 import shlex
 import sys
@@ -230,7 +231,7 @@ def cmd_sweep(args) -> int:
     try:
         study = studies.get(args.study)
         if args.dry_run:
-            workers = args.cpus or (1 if args.address else None) or __import__("os").cpu_count()
+            workers = args.cpus or os.cpu_count() or 1
             print(sweep.format_plan(study, b, sweep.plan(study, b, args.only, workers=workers),
                                     workers))
             return 0

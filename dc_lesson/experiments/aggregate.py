@@ -150,8 +150,20 @@ def write(study_name: str, b: _budget.Budget | None = None, *, root=None, result
                         "folder": f"results/cells/{study.name}"},
               "wall_seconds": float(sum(r["provenance"]["wall_seconds"] for r in recs)),
               **payload}
-    storage.atomic_write_text(path, json.dumps(record, indent=1, default=float) + "\n")
+    storage.atomic_write_text(path, json.dumps(_no_nan(record), indent=1, default=float,
+                                               allow_nan=False) + "\n")
     return path
+
+
+def _no_nan(x):
+    """JSON has no NaN: an interval that does not exist (one seed) is written as null."""
+    if isinstance(x, float) and not np.isfinite(x):
+        return None
+    if isinstance(x, dict):
+        return {k: _no_nan(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_no_nan(v) for v in x]
+    return x
 
 
 __all__ = ["AggregateError", "KEY", "MEASURES", "grid_records", "iqm_over_tasks", "observation",

@@ -111,8 +111,10 @@ def judge_claim(claim: Claim, obs, tasks=None, measure=None, note: str = "") -> 
         word = judge(ci, claim.direction) if len(seeds) >= MIN_SEEDS else "inconclusive"
         few = f" (fewer than {MIN_SEEDS} seeds)" if len(seeds) < MIN_SEEDS else ""
         per_task.append((task, word, ci.mean, ci.lo, ci.hi, len(seeds)))
-        parts.append(f"{task}: {claim.a} - {claim.b} = {ci.mean:+.3f} "
-                     f"[{ci.lo:+.3f}, {ci.hi:+.3f}] over {len(seeds)} seeds -> {word}{few}")
+        band = (f"[{ci.lo:+.3f}, {ci.hi:+.3f}]" if np.isfinite(ci.lo) and np.isfinite(ci.hi)
+                else "(no interval)")
+        parts.append(f"{task}: {claim.a} - {claim.b} = {ci.mean:+.3f} {band} over "
+                     f"{len(seeds)} seeds -> {word}{few}")
     evidence = "; ".join(parts) or "no paired results"
     return Verdict(claim.name, claim.source, claim.rule, count(per_task),
                    evidence + (f" ({note})" if note else ""), claim.reason, tuple(per_task))
@@ -248,7 +250,8 @@ def observations() -> tuple[list, dict, str]:
             if rec and "cells" in rec:
                 obs += [{**o, "task": "lr"} if name.endswith("lr.json") else o
                         for o in rec["observations"] if keep(o["row"])]
-        tasks = [{"cell": {"task": t}} for t in dict.fromkeys(o["task"] for o in obs)]
+        tasks = [{"cell": {"task": t}} for t in dict.fromkeys(o["task"] for o in obs)
+                 if t != "lr"]
         return obs, _imitation.reference_shares(tasks), "cell aggregates, fresh expert reference"
     obs = legacy_observations(dc, _load("gail_modes.json"), _load("dc_ablation.json"),
                               _load("dc_lr.json"), _load("gail_lr.json"))

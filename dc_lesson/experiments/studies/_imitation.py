@@ -42,9 +42,17 @@ def learner_cell(study: str, learner: str, task: str, seed: int, b: _budget.Budg
                            variant=variant, needs=(protocol.reference_cell(task),))
 
 
+def without_seed(d):
+    """A learner's config without its seeds (at any depth: GAIL's PPO has its own), so one
+    seed's listing and another's run compare; the cell's seed is in its identity."""
+    if isinstance(d, dict):
+        return {k: without_seed(v) for k, v in d.items() if k != "seed"}
+    return d
+
+
 def check_config(cell, current: dict) -> None:
     """Refuses to run a cell whose learner config no longer matches the code's."""
-    if json.loads(json.dumps(current)) != cell.config[cell.learner]:
+    if without_seed(json.loads(json.dumps(current))) != cell.config[cell.learner]:
         raise cells.CellError(f"{cell.study}/{cell.task}/{cell.name}: the learner's config "
                               f"changed since the cell was listed; list the study again")
 

@@ -21,9 +21,7 @@ NAME = "dc_modes"
 
 
 def _dc_json(b, seed, overrides) -> dict:
-    d = json.loads(dc_config(b, seed=seed, **overrides).to_json())
-    d.pop("seed")
-    return d
+    return _im.without_seed(json.loads(dc_config(b, seed=seed, **overrides).to_json()))
 
 
 def dc_cell(study, task, seed, b, *, overrides=None, steps=None, variant="", **extra):

@@ -16,8 +16,7 @@ NAME = "gail_modes"
 
 
 def gail_cell(study, task, seed, b, *, lr=None, steps=None, variant=""):
-    cfg = gail_config(int(steps or b.il_steps), 0, lr=lr).to_dict()
-    cfg.pop("seed")
+    cfg = _im.without_seed(gail_config(int(steps or b.il_steps), seed, lr=lr).to_dict())
     extra = {} if lr is None else {"lr": float(lr)}
     return _im.learner_cell(study, "gail", task, seed, b, cfg, variant=variant, steps=steps,
                             **extra)
@@ -27,9 +26,7 @@ def run_gail(cell, needs):
     """One GAIL cell: warm start, GAIL, both evaluated (any GAIL study's cells)."""
     c = cell.config
     cfg = gail_config(c["steps"], cell.seed, lr=c.get("lr"))
-    current = cfg.to_dict()
-    current.pop("seed")
-    _im.check_config(cell, current)
+    _im.check_config(cell, cfg.to_dict())
     row, feats = _bench.run_one(cell.task, cell.seed, n_demos=c["n_demos"], steps=c["steps"],
                                 eval_episodes=c["eval_episodes"],
                                 reference=_common.reference(needs),
