@@ -80,7 +80,9 @@ __all__ = ["BenchInputError", "check_eval_seeds", "feature_key", "features_path"
 # read by every study).  The expert row scores the expert itself, by the same protocol, on the
 # learners' evaluation episodes (seed 0: EVAL_SEED, the very episodes every learner is run on)
 # and on further disjoint samples (seed s > 0: EVAL_SEED + s): two disjoint expert samples, the
-# floor below which a learner's EMD / KL / RKL mean nothing.
+# floor below which a learner's EMD / KL / RKL mean nothing.  (For the planner experts of
+# walker, ant and humanoid an episode costs minutes, so their reference costs
+# REFERENCE_EPISODES of those; no study of this package uses those tasks yet.)
 
 REFERENCE_SEED = 3000
 REFERENCE_EPISODES = 25     # as many episodes as the stored demonstrations
