@@ -198,6 +198,7 @@ def format_plan(study: _cells.Study, b: _budget.Budget, p: dict, workers: int) -
     unknown = f" (+ {p['unknown']} cells never measured)" if p["unknown"] else ""
     lines.append(f"estimated cost: {_fmt_s(p['cpu_seconds'])} of CPU{unknown}; about "
                  f"{_fmt_s(p['wall_seconds'])} of wall time on {workers} worker(s)")
+    lines.append("to run it: " + b.sweep_command.replace("STUDY", study.name))
     return "\n".join(lines)
 
 
