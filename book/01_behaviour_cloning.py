@@ -57,7 +57,7 @@ from dc_lesson.storage import read_result
 
 BUDGET = notebook.start(
     "the policies trained live below are tiny and every number they give means "
-    "nothing. The stored benchmark (data/results/bc_demos.json) is read, not "
+    "nothing. The stored benchmark (data/results/bc_demos_legacy.json) is read, not "
     "recomputed, so its table and plot are the real ones.")
 CHAPTER_START = time.perf_counter()
 
@@ -222,11 +222,11 @@ print(f"BC with {N_LIVE} demonstrations on {LIVE_TASK}: return "
 # initial weights, the minibatch order). The benchmark `dc-lesson bench bc` repeats the run
 # above for several tasks, for the paper's 4, 11, 18 and 25 demonstrations, and for five
 # seeds each, evaluates every policy on the same 50 fresh episodes, and stores the result in
-# `data/results/bc_demos.json` with the command, seeds, budget and revision that made it. The
+# `data/results/bc_demos_legacy.json` with the command, seeds, budget and revision that made it. The
 # table below is read from that file; nothing is recomputed here.
 
 # %%
-bench = read_result("bc_demos.json")
+bench = read_result("bc_demos_legacy.json")
 print(f"command: {bench['command']}\nbudget: {bench['budget']}   revision: "
       f"{bench['revision'][:12]}   time: {bench['time']}\n{bench['eval_episodes']} evaluation "
       f"episodes per policy, {len(bench['seeds'])} seeds, at most "
@@ -280,7 +280,7 @@ fig.tight_layout()
 plt.show()
 
 # %% [markdown]
-# What the stored runs show (each statement is checked against `data/results/bc_demos.json`
+# What the stored runs show (each statement is checked against `data/results/bc_demos_legacy.json`
 # by a test in `tests/test_book_claims.py`):
 #
 # * **`reacher4`: more demonstrations, higher return.** The mean scaled return rises with
@@ -408,7 +408,7 @@ if LIVE_TASK in ("reacher2", "reacher4"):
     display(shares.T.round(2))
 
 # %% [markdown]
-# What the stored benchmark shows about the modes (`data/results/bc_demos.json`, checked by
+# What the stored benchmark shows about the modes (`data/results/bc_demos_legacy.json`, checked by
 # `tests/test_book_claims.py`):
 #
 # * **BC concentrates.** Every one of the 15 BC policies trained on 11 or more demonstrations
@@ -508,7 +508,7 @@ kl_table.round(2)
 # * Its test states are its own, not the expert's. Small errors move it off the demonstrated
 #   states, where nothing corrects them: covariate shift, with costs that can grow as
 #   $\varepsilon T^2$.
-# * On our ports (`data/results/bc_demos.json`) its return grows with the number of
+# * On our ports (`data/results/bc_demos_legacy.json`) its return grows with the number of
 #   demonstrations on `reacher4`, hardly depends on it beyond 4 on `halfcheetah`, and shows
 #   no trend on `reacher1`.
 # * A single Gaussian cannot represent an expert that picks a mode by an unobserved coin: BC

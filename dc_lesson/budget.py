@@ -49,6 +49,16 @@ class Budget:
     softflow_task_seeds: tuple[int, ...] = (0,)       # seeds of the task flows
     softflow_sigma_maxes: tuple[float, ...] = (0.0, 0.03, 0.1, 0.3)  # the sweep (0: plain CNF)
     softflow_grid: int = 60          # grid points per axis of a drawn 2-D density
+    # Seeds of the cell studies (`dc-lesson sweep STUDY`): enough to decide a paired difference
+    # on the reachers (cheap), fewer elsewhere (issue 15: 10 on the reachers, 5 elsewhere).
+    sweep_seeds_reacher: int = 10    # seeds per cell on reacher1/2/4
+    sweep_seeds_other: int = 5       # seeds per cell on every other task
+    sweep_command: str = "dc-lesson sweep STUDY"   # how its grids run (all cores, locally)
+
+    def seeds_for(self, task: str) -> tuple[int, ...]:
+        """The seeds of a cell study on ``task``."""
+        n = self.sweep_seeds_reacher if task.startswith("reacher") else self.sweep_seeds_other
+        return tuple(range(n))
 
     @property
     def is_smoke(self) -> bool:
@@ -62,7 +72,8 @@ PRESETS: dict[str, Budget] = {
                     il_eval_episodes=2, lr_sweep_lrs=(1e-4, 3e-3), lr_sweep_seeds=(0,),
                     lr_sweep_steps=2048, softflow_toy_points=256, softflow_toy_iters=4,
                     softflow_toy_seeds=(0,), softflow_states=256, softflow_iters=4,
-                    softflow_sigma_maxes=(0.0, 0.1), softflow_grid=25),
+                    softflow_sigma_maxes=(0.0, 0.1), softflow_grid=25,
+                    sweep_seeds_reacher=2, sweep_seeds_other=1),
     "lesson": Budget("lesson", tour_episodes=10, video_steps=150, bench_steps=8000,
                      bc_demo_counts=(4, 11, 18, 25), bc_seeds=(0, 1, 2, 3, 4),
                      bc_eval_episodes=50, bc_max_epochs=200, il_demos=18,
@@ -76,7 +87,12 @@ PRESETS: dict[str, Budget] = {
                     softflow_toy_seeds=(0, 1, 2, 3, 4), softflow_states=8000,
                     softflow_iters=4000, softflow_task_seeds=(0, 1, 2),
                     softflow_sigma_maxes=(0.0, 0.01, 0.03, 0.1, 0.3, 1.0),
-                    softflow_grid=100),
+                    softflow_grid=100, sweep_seeds_reacher=10, sweep_seeds_other=10,
+                    # the paper's grid outgrows one machine: join a Ray cluster
+                    # (`ray start --head` on one node, `ray start --address HEAD:6379` on the
+                    # others, a shared DC_LESSON_DATA folder) and run from the head node:
+                    sweep_command="DC_LESSON_BUDGET=paper dc-lesson sweep STUDY --budget paper "
+                                  "--address auto"),
 }
 
 

@@ -12,6 +12,8 @@
   dc-lesson perf WHAT                   speed benchmarks (dc-lesson perf -h lists them)
   dc-lesson bench WHAT --out FILE       the studies behind the book's stored results
                                         (dc-lesson bench -h describes each)
+  dc-lesson sweep STUDY [--dry-run]     a study's cells on Ray (resumable, accumulating)
+  dc-lesson aggregate STUDY             its cells -> data/results/STUDY.json (intervals)
 
 Sizes follow the budget: set DC_LESSON_BUDGET to smoke (seconds, numbers mean nothing),
 lesson (the default, minutes) or paper (the paper's sizes, hours). A wrong value, a missing
@@ -340,6 +342,44 @@ def cmd_bench(args) -> int:
     return 0
 
 
+def cmd_sweep(args) -> int:
+    """``dc-lesson sweep``: dc_lesson.experiments.sweep (its docstring says everything)."""
+    from dc_lesson import budget
+    from dc_lesson.experiments import aggregate, cells, studies, sweep
+    b = budget.get(args.budget) if args.budget else budget.current()
+    try:
+        study = studies.get(args.study)
+        if args.dry_run:
+            workers = args.cpus or os.cpu_count() or 1
+            print(sweep.format_plan(study, b, sweep.plan(study, b, args.only, workers=workers),
+                                    workers))
+            return 0
+        report = sweep.run(args.study, b, only=args.only, address=args.address, cpus=args.cpus,
+                           command=_command_line())
+    except (studies.UnknownStudyError, sweep.SweepError, cells.CellError,
+            aggregate.AggregateError) as e:
+        print(f"dc-lesson: {e}", file=sys.stderr)
+        return 2
+    print(f"sweep {report.study} ({report.budget}): {report.cells} cells, {report.skipped} "
+          f"already done, {report.ran} run, {len(report.failed)} failed, "
+          f"{report.wall_seconds:.0f} s" + (f"; wrote {report.aggregate}" if report.aggregate
+                                             else ""))
+    return 1 if report.failed else 0
+
+
+def cmd_aggregate(args) -> int:
+    from dc_lesson import budget
+    from dc_lesson.experiments import aggregate, cells, studies
+    b = budget.get(args.budget) if args.budget else budget.current()
+    try:
+        path = aggregate.write(args.study, b, command=_command_line())
+    except (studies.UnknownStudyError, cells.CellError, aggregate.AggregateError) as e:
+        print(f"dc-lesson: {e}", file=sys.stderr)
+        return 2
+    print(f"wrote {path}")
+    return 0
+
+
 # -- the parser ---------------------------------------------------------------------------------
 
 def _choices_help(table: dict) -> str:
@@ -436,6 +476,21 @@ def build_parser() -> argparse.ArgumentParser:
                    help="gail: one learning rate for the policy, critic and discriminator "
                         "(default: GAILConfig's)")
     s.set_defaults(func=cmd_bench)
+    s = sub.add_parser("sweep", help="run a study's cells on Ray (skips finished cells)")
+    s.add_argument("study", help="a study of dc_lesson.experiments.studies (bc_demos, ...)")
+    s.add_argument("--budget", default=None, help="smoke | lesson | paper (default: "
+                   "DC_LESSON_BUDGET)")
+    s.add_argument("--only", nargs="+", default=(), metavar="KEY=VALUE",
+                   help="keep matching cells: task=reacher4 seed=0,1 learner=bc n_demos=4")
+    s.add_argument("--dry-run", action="store_true", help="list the cells and their cost")
+    s.add_argument("--address", default=None, help="join this Ray cluster (e.g. auto)")
+    s.add_argument("--cpus", type=int, default=None, help="local Ray workers (default: all "
+                   "cores)")
+    s.set_defaults(func=cmd_sweep)
+    s = sub.add_parser("aggregate", help="a finished study's cells -> data/results/STUDY.json")
+    s.add_argument("study")
+    s.add_argument("--budget", default=None)
+    s.set_defaults(func=cmd_aggregate)
     return p
 
 

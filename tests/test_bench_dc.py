@@ -51,11 +51,14 @@ def test_dc_config_spends_the_budgets_interactions():
         dc.DCConfig().batch_size <= budget.get("lesson").il_steps
 
 
-def test_claims_judge_a_record_without_gail_as_not_tested(smoke_record):
+def test_claims_judge_a_record_without_gail_on_what_it_has(smoke_record):
     _, record = smoke_record
     rows = claims.table_one(record, {"summary": []})
     assert [r["method"] for r in rows] == ["BC", "DC"]
-    v = claims.claim_lowest_divergences(rows)
-    assert v.verdict == "not tested"
-    conv = claims.claim_convergence(json.loads(json.dumps(record)))
-    assert conv.verdict in ("reproduced", "partly reproduced", "not reproduced")
+    obs = claims.legacy_observations(json.loads(json.dumps(record)))
+    v = {x.claim: x for x in claims.verdicts(obs, {})}
+    lowest = v[claims.LOWEST_DIVERGENCE.name]
+    assert [p[1] for p in lowest.per_task] == ["inconclusive"]   # one seed: no interval
+    assert v[claims.HIGHER_RETURN.name].per_task == ()           # no GAIL to compare with
+    conv = v[claims.CONVERGES.name]
+    assert conv.per_task and conv.per_task[0][1] in claims.VERDICTS

@@ -13,15 +13,15 @@ def test_chapter00_rollout_speed_claims_hold_in_the_stored_benchmark():
             assert r["rollout / raw"] >= 0.5, name
 
 
-# -- chapter 01: behaviour cloning (data/results/bc_demos.json, data/results/bc_drift.json) -----
+# -- chapter 01: behaviour cloning (data/results/bc_demos_legacy.json, bc_drift.json) ---------
 
 def _bc_summary():
-    record = read_result("bc_demos.json")
+    record = read_result("bc_demos_legacy.json")
     return record, {(r["task"], r["n_demos"]): r for r in record["summary"]}
 
 
 def _bc_runs(task, min_demos=0):
-    return [r for r in read_result("bc_demos.json")["runs"]
+    return [r for r in read_result("bc_demos_legacy.json")["runs"]
             if r["task"] == task and r["n_demos"] >= min_demos]
 
 

@@ -97,10 +97,11 @@ def test_chapter04_ablation_prose_holds(dc_modes):
     assert round(admm["scaled_return_mean"], 2) == 0.23
 
 
-def test_chapter04_verdicts_are_those_the_prose_states():
-    v = {x.claim: x.verdict for x in claims.verdicts()}
-    want = ["partly reproduced", "partly reproduced", "partly reproduced", "not reproduced",
-            "partly reproduced", "reproduced", "reproduced", "reproduced"]
-    assert list(v.values()) == want
+def test_chapter04_verdicts_from_the_three_seed_files_decide_nothing():
+    """The whole-grid files have 3 seeds (2 in the learning-rate sweeps): below
+    claims.MIN_SEEDS, so every task's verdict is inconclusive, whatever its interval."""
+    for v in claims.verdicts():
+        assert {p[1] for p in v.per_task} <= {"inconclusive"}, v.claim
+        assert all(p[5] < claims.MIN_SEEDS for p in v.per_task)
     gail_lr = {s["lr"]: s["scaled_return_mean"] for s in read_result("gail_lr.json")["summary"]}
     assert gail_lr[3e-4] < gail_lr[1e-4] - 0.3        # GAIL already falls at 3e-4

@@ -1,0 +1,170 @@
+"""From cells to the tables the book reads: ``dc-lesson aggregate STUDY`` (and the end of a
+complete sweep).
+
+A study turns each of its records into *observations*: one per policy the cell evaluated, a
+flat dict ``{"row", "task", "n_demos", "seed", measure: value, ...}`` (a GAIL cell gives two,
+its BC warm start and GAIL).  Then
+
+* :func:`table`: per (row, task, n_demos), each measure's mean over seeds, its 95% bootstrap
+  interval (:func:`stats.mean_ci`), the sample std, the values per seed, and the mean mode
+  shares;
+* :func:`paired`: per (task, n_demos), the per-seed differences ``a - b`` of two rows that share
+  their seeds (and so their warm start), mean and interval (:func:`stats.paired_diff`);
+* :func:`iqm_over_tasks`: the IQM of one row's measure over tasks and seeds, with its
+  stratified interval (where the paper's aggregate is across tasks).
+
+The aggregate goes to ``data/results/STUDY.json`` with the command, budget, revision and time,
+and the count, revisions and summed wall time of the cells it was made from (``wall_seconds``:
+the cells' compute, one worker's worth, whatever the number of workers that ran them).  Only cells of the
+study's current grid count (a record left from an older config is ignored, not mixed in).
+"""
+
+from __future__ import annotations
+
+import datetime
+import json
+import pathlib
+
+import numpy as np
+
+from dc_lesson import budget as _budget
+from dc_lesson import storage
+from dc_lesson.evaluation import stats
+from dc_lesson.experiments import cells as _cells
+
+MEASURES = ("scaled_return", "return", "emd", "kl", "rkl")
+KEY = ("row", "task", "n_demos")
+
+
+class AggregateError(ValueError):
+    """A study whose grid is not complete, or observations that cannot be paired."""
+
+
+def observation(record: dict, measures: dict, row: str | None = None, **extra) -> dict:
+    """One policy's measures in a cell, as a flat observation."""
+    c = record["cell"]
+    row = row or (c["learner"] + (f"-{c['variant']}" if c["variant"] else ""))
+    return {"row": row, "task": c["task"], "n_demos": c["n_demos"], "seed": c["seed"],
+            **{k: v for k, v in measures.items()}, **extra}
+
+
+def _groups(obs, key=KEY) -> dict[tuple, list[dict]]:
+    out: dict[tuple, list[dict]] = {}
+    for o in obs:
+        out.setdefault(tuple(o[k] for k in key), []).append(o)
+    return out
+
+
+def table(obs: list[dict], measures=MEASURES, key=KEY) -> list[dict]:
+    """One row per (row, task, n_demos): mean, 95% interval, std and per-seed values."""
+    out = []
+    for k, rows in _groups(obs, key).items():
+        rows = sorted(rows, key=lambda o: o["seed"])
+        entry = {**dict(zip(key, k)), "n_seeds": len(rows), "seeds": [o["seed"] for o in rows]}
+        for m in measures:
+            if not all(m in o and o[m] is not None for o in rows):
+                continue
+            v = np.array([o[m] for o in rows], np.float64)
+            ci = stats.mean_ci(v)
+            entry[f"{m}_mean"], entry[f"{m}_lo"], entry[f"{m}_hi"] = ci.mean, ci.lo, ci.hi
+            entry[f"{m}_std"] = float(v.std(ddof=1)) if len(v) > 1 else 0.0
+            entry[f"{m}_values"] = v.tolist()
+        shares = [o["mode_shares"] for o in rows if o.get("mode_shares")]
+        if shares:
+            entry["mode_shares_mean"] = {m: float(np.mean([s[m] for s in shares]))
+                                         for m in shares[0]}
+            entry["mode_shares_per_seed"] = shares
+        out.append(entry)
+    return out
+
+
+def paired(obs: list[dict], a: str, b: str, measures=MEASURES, by=("task", "n_demos")) -> list:
+    """Per ``by`` group: the per-seed differences row ``a`` minus row ``b`` over the seeds both
+    have, mean and 95% interval.  Skips groups where one of the rows is missing."""
+    out = []
+    for k, rows in _groups(obs, by).items():
+        ra = {o["seed"]: o for o in rows if o["row"] == a}
+        rb = {o["seed"]: o for o in rows if o["row"] == b}
+        seeds = sorted(set(ra) & set(rb))
+        if not seeds:
+            continue
+        entry = {**dict(zip(by, k)), "a": a, "b": b, "n_seeds": len(seeds), "seeds": seeds}
+        for m in measures:
+            if any(ra[s].get(m) is None or rb[s].get(m) is None for s in seeds):
+                continue
+            ci = stats.paired_diff([ra[s][m] for s in seeds], [rb[s][m] for s in seeds])
+            entry[m] = ci.to_dict()
+            entry[f"{m}_diffs"] = [ra[s][m] - rb[s][m] for s in seeds]
+        out.append(entry)
+    return out
+
+
+def iqm_over_tasks(obs: list[dict], row: str, measure: str = "scaled_return") -> dict | None:
+    """IQM of ``row``'s ``measure`` over (task, seed), with its stratified interval; uses the
+    seeds every task has."""
+    by_task = {}
+    for o in obs:
+        if o["row"] == row and o.get(measure) is not None:
+            by_task.setdefault(o["task"], {})[o["seed"]] = o[measure]
+    if not by_task:
+        return None
+    seeds = sorted(set.intersection(*(set(v) for v in by_task.values())))
+    if not seeds:
+        return None
+    x = np.array([[by_task[t][s] for t in by_task] for s in seeds])
+    return {"row": row, "measure": measure, "tasks": list(by_task), "seeds": seeds,
+            **stats.iqm_ci(x).to_dict()}
+
+
+def grid_records(study: _cells.Study, b: _budget.Budget, root=None) -> list[dict]:
+    """The records of the study's current grid; fails, naming the command, if any is missing."""
+    grid = [c for c in study.grid(b) if c.study == study.name]
+    missing = [c for c in grid if not c.path(root).exists()]
+    if missing:
+        raise AggregateError(f"{len(missing)} of the {len(grid)} cells of {study.name} at budget "
+                             f"{b.name} have not run (first: {missing[0].task}/{missing[0].name});"
+                             f" run: dc-lesson sweep {study.name} --budget {b.name}")
+    return [_cells.read_record(c.path(root)) for c in grid]
+
+
+def write(study_name: str, b: _budget.Budget | None = None, *, root=None, results=None,
+          command: str = "") -> pathlib.Path:
+    """Aggregates a complete study and writes ``RESULTS/STUDY.json``; returns the path."""
+    from dc_lesson.experiments import studies
+    b = b or _budget.current()
+    study = studies.get(study_name)
+    if study.aggregate is None:
+        raise AggregateError(f"study {study.name} has no aggregate (it is read by others)")
+    recs = grid_records(study, b, root)
+    payload = study.aggregate(recs, b)
+    path = pathlib.Path(results or storage.RESULTS) / (study.result_file or
+                                                       f"{study.name}.json")
+    record = {"command": command or f"dc-lesson aggregate {study.name} --budget {b.name}",
+              "benchmark": study.name, "budget": b.name, "revision": storage.git_revision(),
+              "time": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+              "seeds": sorted({r["cell"]["seed"] for r in recs}),
+              "cells": {"n": len(recs),
+                        "revisions": sorted({r["provenance"]["revision"] for r in recs}),
+                        "wall_seconds": float(sum(r["provenance"]["wall_seconds"]
+                                                  for r in recs)),
+                        "folder": f"results/cells/{study.name}"},
+              "wall_seconds": float(sum(r["provenance"]["wall_seconds"] for r in recs)),
+              **payload}
+    storage.atomic_write_text(path, json.dumps(_no_nan(record), indent=1, default=float,
+                                               allow_nan=False) + "\n")
+    return path
+
+
+def _no_nan(x):
+    """JSON has no NaN: an interval that does not exist (one seed) is written as null."""
+    if isinstance(x, float) and not np.isfinite(x):
+        return None
+    if isinstance(x, dict):
+        return {k: _no_nan(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_no_nan(v) for v in x]
+    return x
+
+
+__all__ = ["AggregateError", "KEY", "MEASURES", "grid_records", "iqm_over_tasks", "observation",
+           "paired", "table", "write"]

@@ -1,0 +1,60 @@
+"""What a chapter calls to put a stored result into prose: the number, its interval, the
+verdict, always rendered from an aggregate (``data/results/STUDY.json``), never typed.
+
+    from dc_lesson.experiments import report
+    report.value("bc_demos", "scaled_return", task="reacher4", n_demos=25)  # 'MEAN [LO, HI]'
+    report.fmt(mean, lo, hi, digits=3)       # the same from numbers already read
+    report.verdict(v)                        # 'VERDICT: task: dc - bc = D [LO, HI] over N ...'
+"""
+
+from __future__ import annotations
+
+import math
+
+from dc_lesson.storage import read_result
+
+
+class ReportError(KeyError):
+    """No row of the aggregate matches what a chapter asked for."""
+
+
+def fmt(mean: float, lo: float | None = None, hi: float | None = None, digits: int = 2) -> str:
+    """``mean [lo, hi]``; the mean alone when there is no interval (one seed)."""
+    if lo is None or hi is None or not (math.isfinite(lo) and math.isfinite(hi)):
+        return f"{mean:.{digits}f}"
+    return f"{mean:.{digits}f} [{lo:.{digits}f}, {hi:.{digits}f}]"
+
+
+def fmt_entry(entry: dict, measure: str, digits: int = 2) -> str:
+    """One measure of an aggregate table row (``{m}_mean``, ``{m}_lo``, ``{m}_hi``) or of a
+    paired entry (``{m}: {mean, lo, hi}``)."""
+    if isinstance(entry.get(measure), dict):
+        d = entry[measure]
+        return fmt(d["mean"], d["lo"], d["hi"], digits)
+    return fmt(entry[f"{measure}_mean"], entry.get(f"{measure}_lo"),
+               entry.get(f"{measure}_hi"), digits)
+
+
+def row(aggregate: dict | str, table: str = "summary", **match) -> dict:
+    """The one row of ``aggregate[table]`` whose fields equal ``match``."""
+    agg = read_result(aggregate) if isinstance(aggregate, str) else aggregate
+    rows = [r for r in agg.get(table, []) if all(r.get(k) == v for k, v in match.items())]
+    if len(rows) != 1:
+        raise ReportError(f"{len(rows)} rows of {table!r} match {match}; a chapter must name "
+                          f"exactly one")
+    return rows[0]
+
+
+def value(study: str, measure: str, *, table: str = "summary", digits: int = 2,
+          **match) -> str:
+    """``fmt`` of one measure of one row of ``data/results/STUDY.json``."""
+    name = study if study.endswith(".json") else f"{study}.json"
+    return fmt_entry(row(name, table, **match), measure, digits)
+
+
+def verdict(v) -> str:
+    """A :class:`claims.Verdict` as one line: the verdict, then its intervals."""
+    return f"{v.verdict}: {v.evidence}"
+
+
+__all__ = ["ReportError", "fmt", "fmt_entry", "row", "value", "verdict"]

@@ -1,0 +1,38 @@
+"""The cell studies, one module per result file (``dc-lesson sweep NAME``).
+
+| study | result file | cells |
+|---|---|---|
+| ``reference`` | (read by the others) | fresh expert episodes per task, collected once |
+| ``bc_demos`` | ``bc_demos.json`` | BC per task, demonstration count and seed; the expert row |
+| ``bc_drift`` | ``bc_drift.json`` | BC's distance from the demonstrated states, and the expert's |
+| ``gail_modes`` | ``gail_modes.json`` | BC warm start and GAIL per multi-mode task and seed |
+| ``gail_lr`` | ``gail_lr.json`` | GAIL per learning rate and seed on halfcheetah |
+| ``dc_modes`` | ``dc_modes.json`` | BC warm start and DC per multi-mode task and seed |
+| ``dc_ablation`` | ``dc_ablation.json`` | DC's loop counts (one seed) and consensus ADMM (all seeds) |
+| ``dc_lr`` | ``dc_lr.json`` | DC per learning rate and seed on halfcheetah |
+| ``softflow_fit`` | ``softflow_fit.json`` | SoftFlow on the circle toy and on expert states |
+"""
+
+from __future__ import annotations
+
+import importlib
+
+from dc_lesson.experiments.cells import Study
+
+NAMES = ("reference", "bc_demos", "bc_drift", "gail_modes", "gail_lr", "dc_modes",
+         "dc_ablation", "dc_lr", "softflow_fit")
+
+
+class UnknownStudyError(ValueError):
+    """A study name that is not in :data:`NAMES`."""
+
+
+def get(name: str) -> Study:
+    """The study called ``name`` (dashes and underscores alike: ``bc-demos`` is ``bc_demos``)."""
+    key = name.replace("-", "_")
+    if key not in NAMES:
+        raise UnknownStudyError(f"unknown study {name!r}; the studies are: {', '.join(NAMES)}")
+    return importlib.import_module(f"dc_lesson.experiments.studies.{key}").STUDY
+
+
+__all__ = ["NAMES", "UnknownStudyError", "get"]

@@ -1,0 +1,142 @@
+"""The imitation protocol's cells (GAIL and DC studies): BC warm start, learner from it, both
+evaluated against the fresh expert reference; what their aggregates share.
+
+Every cell of a GAIL or DC study trains the seed's BC warm start itself (deterministic: the same
+seed gives the same start in every study, so DC's and GAIL's cells of one seed share it and
+their differences can be paired), then the learner, and evaluates both on the same fresh
+episodes.  Its result holds ``start`` (BC) and ``final`` (the learner) measures.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+
+from dc_lesson import budget as _budget
+from dc_lesson.experiments import aggregate as _agg
+from dc_lesson.experiments import cells, protocol
+from dc_lesson.experiments.studies import _common
+from dc_lesson.evaluation import stats
+
+TASKS = ("reacher4", "reacher2", "halfcheetah2")
+LR_TASK = "halfcheetah"
+COLLAPSE_SHARE = 0.8
+
+
+def protocol_config(b: _budget.Budget, steps: int | None = None) -> dict:
+    return {"budget": b.name, "n_demos": b.il_demos, "steps": int(steps or b.il_steps),
+            "eval_episodes": b.il_eval_episodes, "bc_max_epochs": b.bc_max_epochs,
+            "eval_seed": protocol.expert_eval_seed(0)}
+
+
+def sized_budget(cfg: dict) -> _budget.Budget:
+    """The budget a cell was listed at, with the cell's interaction count."""
+    return dataclasses.replace(_budget.get(cfg["budget"]), il_steps=cfg["steps"])
+
+
+def learner_cell(study: str, learner: str, task: str, seed: int, b: _budget.Budget,
+                 learner_config: dict, *, variant: str = "", steps: int | None = None,
+                 **extra):
+    return cells.make_cell(study, learner, task, b.il_demos, seed,
+                           {**protocol_config(b, steps), learner: learner_config, **extra},
+                           variant=variant, needs=(protocol.reference_cell(task),))
+
+
+def without_seed(d):
+    """A learner's config without its seeds (at any depth: GAIL's PPO has its own), so one
+    seed's listing and another's run compare; the cell's seed is in its identity."""
+    if isinstance(d, dict):
+        return {k: without_seed(v) for k, v in d.items() if k != "seed"}
+    return d
+
+
+def check_config(cell, current: dict) -> None:
+    """Refuses to run a cell whose learner config no longer matches the code's."""
+    if without_seed(json.loads(json.dumps(current))) != cell.config[cell.learner]:
+        raise cells.CellError(f"{cell.study}/{cell.task}/{cell.name}: the learner's config "
+                              f"changed since the cell was listed; list the study again")
+
+
+def observations(records, start_row: str = "bc") -> list[dict]:
+    """Each imitation cell gives two observations, its start (``start_row``) and its final
+    policy (the cell's row); the expert row's cells give one.  Starts of one (task, seed) are
+    the same policy in every cell; the first is kept."""
+    obs, seen = [], set()
+    for r in records:
+        res = r["result"]
+        if "measures" in res:
+            obs.append(_agg.observation(r, res["measures"]))
+            continue
+        key = (r["cell"]["task"], r["cell"]["seed"])
+        if key not in seen:
+            seen.add(key)
+            obs.append(_agg.observation(r, res["start"], row=start_row))
+        extra = {"curve": res.get("curve")}
+        if "config" in res:   # DC: the iterations per loop, for the convergence claim
+            extra["iterations"] = res["config"]["iterations"]
+        obs.append(_agg.observation(r, res["final"], **extra))
+    return obs
+
+
+def mode_summary(obs: list[dict], reference_shares: dict, eval_episodes: int) -> list[dict]:
+    """Per (row, task): per seed the largest mode's share and the TV distance of the seed's
+    mode shares from the reference's; the share of seeds collapsed (largest share at least
+    COLLAPSE_SHARE); and the multinomial floor of TV for ``eval_episodes`` episodes."""
+    out = []
+    for (row, task, _), rows in _agg._groups(obs).items():
+        shares = [o["mode_shares"] for o in sorted(rows, key=lambda o: o["seed"])
+                  if o.get("mode_shares")]
+        ref = reference_shares.get(task)
+        if not shares or not ref:
+            continue
+        top = [max(s.values()) for s in shares]
+        tvs = [stats.tv(ref, s) for s in shares]
+        floor = stats.multinomial_tv_floor(ref, eval_episodes)
+        out.append({"row": row, "task": task, "n_seeds": len(shares),
+                    "largest_share": top, "collapsed_share": float(
+                        sum(t >= COLLAPSE_SHARE for t in top) / len(top)),
+                    "tv": tvs, "tv_ci": stats.mean_ci(tvs).to_dict(),
+                    "tv_floor": floor, "above_floor": float(
+                        sum(t > floor["quantile"] for t in tvs) / len(tvs)),
+                    "collapse_threshold": COLLAPSE_SHARE})
+    return out
+
+
+def reference_shares(records) -> dict:
+    """The reference's mode shares per task, from the expert row's cells' needs (read from the
+    reference cells on disk)."""
+    out = {}
+    for r in records:
+        task = r["cell"]["task"]
+        if task in out:
+            continue
+        ref = protocol.reference_cell(task)
+        if ref.path().exists():
+            out[task] = cells.read_record(ref.path())["result"]["mode_shares"]
+    return out
+
+
+def standard_aggregate(records, b, rows_paired=()) -> dict:
+    """Table, expert row, paired differences and mode summary of an imitation study."""
+    obs = observations(records)
+    learners = [o for o in obs if o["row"] != "expert"]
+    eval_episodes = records[0]["config"].get("eval_episodes", b.il_eval_episodes)
+    return {"table": _agg.table(learners), "expert": _agg.table(
+                [o for o in obs if o["row"] == "expert"]),
+            "paired": [p for a, bb in rows_paired for p in _agg.paired(obs, a, bb)],
+            "modes": mode_summary(obs, reference_shares(records), eval_episodes),
+            "interval": "95% bootstrap (BCa) over seeds; paired: of the per-seed differences",
+            "protocol": protocol_config(b), "observations": obs}
+
+
+def versus_start_aggregate(records, b) -> dict:
+    """:func:`standard_aggregate` with every learner row paired with the BC start (the
+    learning-rate sweeps: each rate against the seed's warm start)."""
+    out = standard_aggregate(records, b)
+    rows = sorted({o["row"] for o in out["observations"] if o["row"] not in ("bc", "expert")})
+    out["paired"] = [p for r in rows for p in _agg.paired(out["observations"], r, "bc")]
+    return out
+
+
+def expert_rows(study: str, tasks, b):
+    return _common.expert_rows(study, tasks, b, b.il_eval_episodes)

@@ -1,0 +1,342 @@
+"""The sweep engine: ``dc-lesson sweep STUDY [--budget B] [--only k=v ...] [--dry-run]
+[--address ADDR] [--cpus N]``.
+
+1. The study is expanded into its cells at the budget (:meth:`cells.Study.grid`: the cells a
+   cell reads, such as the fresh expert reference, come with it); ``--only`` keeps the cells
+   whose fields match (``task=reacher4``, ``seed=0,1``, ``learner=bc``, ``n_demos=4``).
+2. The results folder is checked writable before any compute (a clear error otherwise).
+3. Finished cells (a record with the same config hash) are skipped; ``--dry-run`` stops here and
+   prints the cells left and their estimated cost, from the wall times of finished cells with
+   the same learner, task and budget (:func:`measured_costs`).
+4. The rest run as Ray tasks, stage by stage (references first): a local Ray instance
+   (``ray.init(num_cpus=N, include_dashboard=False)``, N = the machine's cores by default),
+   one CPU and one torch thread per task; ``--address`` joins an existing Ray cluster instead.
+   Workers only compute; the driver writes each record atomically the moment its task ends, so
+   a sweep killed at any moment keeps every finished cell, and a rerun computes exactly the
+   missing ones.  A cell's numbers depend on nothing but the cell (its config and seed), so a
+   resumed sweep ends with the same records as an uninterrupted one.
+5. A progress bar shows cells done / running / left and an ETA from the finished cells' wall
+   times; a failed cell is reported and left for the next run (the exit code says so).
+6. When the grid is complete, the study is aggregated (:mod:`dc_lesson.experiments.aggregate`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+import pathlib
+import socket
+import statistics
+import tempfile
+import time
+
+from dc_lesson import budget as _budget
+from dc_lesson.experiments import cells as _cells
+
+ONLY_KEYS = ("learner", "variant", "row", "task", "n_demos", "seed", "stage")
+
+
+class SweepError(ValueError):
+    """A sweep that cannot start (unknown study, bad ``--only``, unwritable folder)."""
+
+
+def select(grid: list[_cells.Cell], only=()) -> list[_cells.Cell]:
+    """The cells matching every ``k=v`` of ``only`` (``v`` may list values: ``seed=0,1``),
+    with the cells they need."""
+    wanted: dict[str, set[str]] = {}
+    for item in only or ():
+        key, sep, value = item.partition("=")
+        if not sep or key not in ONLY_KEYS or not value:
+            raise SweepError(f"--only takes KEY=VALUE with KEY one of {', '.join(ONLY_KEYS)}; "
+                             f"got {item!r}")
+        wanted.setdefault(key, set()).update(value.split(","))
+    if not wanted:
+        return list(grid)
+    keep = [c for c in grid
+            if all(str(getattr(c, k)) in v for k, v in wanted.items())]
+    out: dict[str, _cells.Cell] = {}
+    for c in keep:
+        for n in c.needs:
+            out.setdefault(f"{n.study}/{n.task}/{n.name}", n)
+        out.setdefault(f"{c.study}/{c.task}/{c.name}", c)
+    if not keep:
+        raise SweepError(f"--only {' '.join(only)} matches none of the study's {len(grid)} "
+                         f"cells")
+    return sorted(out.values(), key=lambda c: c.stage)
+
+
+def check_writable(root) -> pathlib.Path:
+    """Creates ``root`` and writes a file in it, or fails with what to do."""
+    root = pathlib.Path(root)
+    try:
+        root.mkdir(parents=True, exist_ok=True)
+        with tempfile.NamedTemporaryFile(dir=root, prefix=".write-check-"):
+            pass
+    except OSError as e:
+        raise SweepError(f"the results folder {root} cannot be written ({e.strerror or e}); "
+                         f"nothing was computed. Fix its permissions, or set DC_LESSON_DATA to "
+                         f"a writable copy of the data folder") from None
+    return root
+
+
+def measured_costs(root=None) -> dict[tuple, list[float]]:
+    """Wall seconds of every finished cell on disk, by (learner row, task, budget)."""
+    base = pathlib.Path(root or _cells.cells_root())
+    out: dict[tuple, list[float]] = {}
+    for p in sorted(base.glob("*/*/*.json")):
+        try:
+            r = _cells.read_record(p)
+        except _cells.CellError:
+            continue
+        c = r["cell"]
+        row = c["learner"] + (f"-{c['variant']}" if c["variant"] else "")
+        out.setdefault((row, c["task"], r["provenance"]["budget"]), []).append(
+            r["provenance"]["wall_seconds"])
+    return out
+
+
+def legacy_costs(results=None) -> dict[tuple, list[float]]:
+    """Per-run wall seconds from the whole-grid result files that ``dc-lesson bench`` wrote
+    before the cells (a file that is already an aggregate is skipped), keyed as
+    :func:`measured_costs`: the estimate of a study no cell of which has run yet."""
+    import json
+    base = pathlib.Path(results or _cells.cells_root().parent)
+    out: dict[tuple, list[float]] = {}
+
+    def read(name):
+        try:
+            r = json.loads((base / name).read_text())
+        except (OSError, ValueError):
+            return None
+        return None if "cells" in r else r
+
+    def add(row, task, budget, s):
+        out.setdefault((row, task, budget), []).append(float(s))
+    if r := read("bc_demos.json"):
+        for x in r["runs"]:
+            add("bc", x["task"], r["budget"], x["train_seconds"] + x["eval_seconds"]
+                + x["measure_seconds"])
+    if r := read("gail_modes.json"):
+        for x in r["runs"]:
+            add("gail", x["task"], r["budget"], x["wall_seconds"])
+    if r := read("dc_modes.json"):
+        for x in r["runs"]:
+            add("dc", x["task"], r["budget"], x["bc"]["seconds"] + x["dc"]["train_seconds"])
+    if r := read("gail_lr.json"):
+        bc = {x["seed"]: x["seconds"] for x in r["bc"]["runs"]}
+        for x in r["runs"]:
+            add(f"gail-lr={x['lr']:g}", r["task"], r["budget"], x["seconds"] + bc[x["seed"]])
+    if r := read("dc_lr.json"):
+        for x in r["runs"]:
+            add(f"dc-lr={x['lr']:g}", r["task"], r["budget"],
+                x["bc"]["seconds"] + x["dc"]["train_seconds"])
+    if r := read("dc_ablation.json"):
+        for x in r["loops"]:
+            row = ("dc-loops=" + x["label"].split("= ")[1] if x["label"].startswith("L =")
+                   else "dc-loops=1-long")
+            add(row, r["task"], r["budget"], x["bc"]["seconds"] + x["dc"]["train_seconds"])
+        for x in r["admm"]:
+            add("dc-update=admm", r["task"], r["budget"],
+                x["bc"]["seconds"] + x["dc"]["train_seconds"])
+    if r := read("bc_drift.json"):
+        per = r["wall_seconds"] / max(1, len(r["per_seed"])) / (len(r["demo_counts"]) + 1)
+        for x in r["per_seed"]:
+            for row in ("bc", "expert"):
+                add(row, x["task"], r["budget"], per)
+    if r := read("softflow_fit.json"):
+        for x in r["toy"]["runs"]:
+            add(f"softflow-sigma={x['sigma_max']:g}", "circle", r["budget"], x["seconds"])
+        for task, v in r["tasks"].items():
+            for x in v["runs"]:
+                add(f"softflow-sigma={x['sigma_max']:g}", task, r["budget"], x["seconds"])
+    return out
+
+
+def estimate(cell: _cells.Cell, costs: dict, budget_name: str) -> float | None:
+    """The median measured wall time of cells like this one (same row, task and budget; else
+    the same learner and task), or None when none has run."""
+    v = costs.get((cell.row, cell.task, budget_name))
+    if not v:
+        v = [s for (row, task, b), w in costs.items() for s in w
+             if b == budget_name and task == cell.task and row.split("-")[0] == cell.learner]
+    return statistics.median(v) if v else None
+
+
+def _fmt_s(s: float | None) -> str:
+    if s is None:
+        return "?"
+    return f"{s:.0f} s" if s < 120 else (f"{s / 60:.1f} min" if s < 7200 else f"{s / 3600:.1f} h")
+
+
+def plan(study: _cells.Study, b: _budget.Budget, only=(), root=None, workers: int = 1) -> dict:
+    """What a sweep would do: every cell, done or not, the estimated cost of the rest."""
+    grid = select(study.grid(b), only)
+    costs = {**legacy_costs(), **measured_costs(root)}   # cells win over the old files
+    todo = [c for c in grid if not _cells.is_done(c, root)]
+    est = [estimate(c, costs, b.name) for c in todo]
+    known = [e for e in est if e is not None]
+    return {"grid": grid, "todo": todo, "estimates": est,
+            "cpu_seconds": sum(known), "unknown": len(est) - len(known),
+            "wall_seconds": sum(known) / max(1, workers)}
+
+
+def format_plan(study: _cells.Study, b: _budget.Budget, p: dict, workers: int) -> str:
+    groups: dict[tuple, list] = {}
+    todo = {id(c): e for c, e in zip(p["todo"], p["estimates"])}
+    for c in p["grid"]:
+        groups.setdefault((c.study, c.row, c.task), []).append(c)
+    lines = [f"sweep {study.name} at budget {b.name}: {len(p['grid'])} cells, "
+             f"{len(p['grid']) - len(p['todo'])} done, {len(p['todo'])} to run",
+             f"{'study':<13}{'row':<22}{'task':<14}{'cells':>6}{'to run':>7}{'per cell':>10}"
+             f"{'total':>10}"]
+    for (st, row, task), cs in groups.items():
+        left = [todo[id(c)] for c in cs if id(c) in todo]
+        per = next((e for e in left if e is not None), None)
+        tot = sum(e for e in left if e is not None) if per is not None else None
+        lines.append(f"{st:<13}{row:<22}{task:<14}{len(cs):>6}{len(left):>7}"
+                     f"{_fmt_s(per) if left else '-':>10}{_fmt_s(tot) if left else '-':>10}")
+    unknown = f" (+ {p['unknown']} cells never measured)" if p["unknown"] else ""
+    lines.append(f"estimated cost: {_fmt_s(p['cpu_seconds'])} of CPU{unknown}; about "
+                 f"{_fmt_s(p['wall_seconds'])} of wall time on {workers} worker(s)")
+    lines.append("to run it: " + b.sweep_command.replace("STUDY", study.name))
+    return "\n".join(lines)
+
+
+# -- running -------------------------------------------------------------------------------------
+
+def execute(cell: _cells.Cell, needs) -> dict:
+    """Runs one cell in this process (what a Ray task does), on one torch thread."""
+    import torch
+
+    from dc_lesson.experiments import studies
+    torch.set_num_threads(1)
+    t0 = time.perf_counter()
+    result, features = studies.get(cell.study).run_cell(cell, needs)
+    return {"result": result, "features": features, "wall_seconds": time.perf_counter() - t0,
+            "threads": torch.get_num_threads(), "host": socket.gethostname()}
+
+
+def _ray_env(b: _budget.Budget) -> dict:
+    env = {"OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "DC_LESSON_BUDGET": b.name}
+    for k in ("MUJOCO_GL", "PYTHONPATH", "DC_LESSON_DATA"):
+        if k in os.environ:
+            env[k] = os.environ[k]
+    return env
+
+
+def start_ray(b: _budget.Budget, *, address: str | None = None, cpus: int | None = None):
+    """A local Ray instance (``cpus`` workers, default all cores) or, with ``address``, the
+    cluster there; a no-op when Ray is already running in this process.  Returns whether this
+    call started it (then the sweep shuts it down)."""
+    try:
+        import ray
+    except ImportError:
+        raise SweepError("the sweep runs on Ray, which is not installed: "
+                         "pip install -e '.[sweep]'") from None
+    if ray.is_initialized():
+        return False
+    kwargs = dict(include_dashboard=False, runtime_env={"env_vars": _ray_env(b)},
+                  logging_level="ERROR", configure_logging=True)
+    if address:
+        ray.init(address=address, **kwargs)
+    else:
+        ray.init(num_cpus=int(cpus or os.cpu_count() or 1), **kwargs)
+    return True
+
+
+@dataclasses.dataclass
+class SweepReport:
+    study: str
+    budget: str
+    cells: int
+    skipped: int
+    ran: int
+    failed: list
+    wall_seconds: float
+    aggregate: pathlib.Path | None = None
+
+
+def run(study_name: str, b: _budget.Budget | None = None, *, only=(), address=None, cpus=None,
+        root=None, results=None, command: str = "", progress: bool = True,
+        aggregate: bool = True) -> SweepReport:
+    """The sweep (module docstring).  ``root`` is the cells folder (default
+    ``DATA/results/cells``), ``results`` where the aggregate goes (default ``DATA/results``)."""
+    import ray
+
+    from dc_lesson import progress as _progress
+    from dc_lesson.experiments import studies
+    b = b or _budget.current()
+    study = studies.get(study_name)
+    root = pathlib.Path(root or _cells.cells_root())
+    check_writable(root)
+    p = plan(study, b, only, root)
+    grid, todo = p["grid"], p["todo"]
+    costs = measured_costs(root)
+    t0 = time.perf_counter()
+    failed, ran = [], 0
+    if todo:
+        started = start_ray(b, address=address, cpus=cpus)
+        workers = int(ray.cluster_resources().get("CPU", 1))
+        remote = ray.remote(num_cpus=1, max_retries=0)(execute)
+        walls: dict[tuple, list[float]] = {}
+        remaining = list(todo)
+        bar = _progress.bar(total=len(todo), desc=f"sweep {study.name}", unit="cell",
+                            enabled=progress)
+        try:
+            for stage in sorted({c.stage for c in todo}):
+                wave = [c for c in todo if c.stage == stage]
+                pending = {}
+                for c in wave:
+                    needs = [_cells.load(n, root) for n in c.needs]
+                    pending[remote.remote(c, needs)] = c
+                while pending:
+                    running = min(len(pending), workers)
+                    bar.set_postfix_str(f"running {running}, left {len(remaining) - running}, "
+                                        f"ETA {_fmt_s(_eta(remaining, walls, costs, b, workers))}")
+                    ready, _ = ray.wait(list(pending), num_returns=1)
+                    cell = pending.pop(ready[0])
+                    remaining.remove(cell)
+                    try:
+                        out = ray.get(ready[0])
+                    except Exception as e:   # a failed cell: reported, left for the next run
+                        failed.append((cell.name, str(e).splitlines()[-1][:300]))
+                        bar.write(f"FAILED {cell.study}/{cell.task}/{cell.name}: {failed[-1][1]}")
+                        bar.update(1)
+                        continue
+                    prov = _cells.provenance(command=command, budget=b.name,
+                                             threads=out["threads"],
+                                             wall_seconds=out["wall_seconds"], host=out["host"])
+                    _cells.write_record(cell, out["result"], out["features"], prov, root)
+                    walls.setdefault((cell.row, cell.task), []).append(out["wall_seconds"])
+                    ran += 1
+                    bar.update(1)
+        finally:
+            bar.close()
+            if started:
+                ray.shutdown()
+    report = SweepReport(study.name, b.name, len(grid), len(grid) - len(todo), ran, failed,
+                         time.perf_counter() - t0)
+    complete = all(_cells.is_done(c, root) for c in study.grid(b))
+    if aggregate and complete and study.aggregate is not None:
+        from dc_lesson.experiments import aggregate as _aggregate
+        report.aggregate = _aggregate.write(study.name, b, root=root, results=results,
+                                            command=command)
+    return report
+
+
+def _eta(left, walls, costs, b, workers) -> float | None:
+    done = [w for v in walls.values() for w in v]
+    total = 0.0
+    for c in left:
+        mine = walls.get((c.row, c.task))
+        e = statistics.mean(mine) if mine else estimate(c, costs, b.name)
+        if e is None and done:
+            e = statistics.mean(done)
+        if e is None:
+            return None
+        total += e
+    return total / max(1, workers)
+
+
+__all__ = ["ONLY_KEYS", "SweepError", "SweepReport", "check_writable", "estimate", "execute",
+           "format_plan", "legacy_costs", "measured_costs", "plan", "run", "select", "start_ray"]

@@ -1,0 +1,61 @@
+"""Aggregation: cells -> per-row means and intervals, paired differences over common seeds,
+and a clear refusal while a grid is incomplete."""
+
+import numpy as np
+import pytest
+
+from dc_lesson import budget
+from dc_lesson.evaluation import stats
+from dc_lesson.experiments import aggregate, report
+
+
+def _obs():
+    out = []
+    for s in range(6):
+        out.append({"row": "bc", "task": "t", "n_demos": 4, "seed": s, "emd": 0.1 * s,
+                    "mode_shares": {"a": 0.5, "b": 0.5}})
+        if s != 5:   # dc lacks seed 5: the pairing uses the 5 common seeds
+            out.append({"row": "dc", "task": "t", "n_demos": 4, "seed": s,
+                        "emd": 0.1 * s - 0.02, "mode_shares": {"a": 0.9, "b": 0.1}})
+    return out
+
+
+def test_table_gives_mean_interval_and_values_per_row():
+    rows = {r["row"]: r for r in aggregate.table(_obs(), measures=("emd",))}
+    bc = rows["bc"]
+    assert bc["n_seeds"] == 6 and bc["emd_values"] == pytest.approx([0.1 * s for s in range(6)])
+    ci = stats.mean_ci(bc["emd_values"])
+    assert (bc["emd_mean"], bc["emd_lo"], bc["emd_hi"]) == (ci.mean, ci.lo, ci.hi)
+    assert rows["dc"]["mode_shares_mean"] == {"a": 0.9, "b": 0.1}
+
+
+def test_paired_uses_the_seeds_both_rows_have():
+    (p,) = aggregate.paired(_obs(), "dc", "bc", measures=("emd",))
+    assert p["seeds"] == [0, 1, 2, 3, 4]
+    assert p["emd"]["mean"] == pytest.approx(-0.02)
+    assert p["emd_diffs"] == pytest.approx([-0.02] * 5)
+
+
+def test_iqm_over_tasks_uses_common_seeds():
+    obs = [{"row": "dc", "task": t, "seed": s, "scaled_return": float(s + i)}
+           for i, t in enumerate(("a", "b")) for s in range(4)]
+    r = aggregate.iqm_over_tasks(obs, "dc")
+    assert r["tasks"] == ["a", "b"] and r["seeds"] == [0, 1, 2, 3]
+    assert r["mean"] == pytest.approx(stats.iqm(np.array([[s, s + 1] for s in range(4)])))
+
+
+def test_an_incomplete_grid_is_refused_with_the_command(tmp_path):
+    with pytest.raises(aggregate.AggregateError, match="dc-lesson sweep bc_demos --budget smoke"):
+        aggregate.write("bc_demos", budget.get("smoke"), root=tmp_path, results=tmp_path)
+
+
+def test_report_renders_from_an_aggregate():
+    agg = {"summary": aggregate.table(_obs(), measures=("emd",))}
+    r = report.row(agg, row="dc", task="t")
+    assert report.fmt_entry(r, "emd", 3) == (f"{r['emd_mean']:.3f} [{r['emd_lo']:.3f}, "
+                                             f"{r['emd_hi']:.3f}]")
+    assert report.fmt(0.5, float("nan"), float("nan")) == "0.50"
+    with pytest.raises(report.ReportError, match="exactly one"):
+        report.row(agg, task="t")
+    (p,) = aggregate.paired(_obs(), "dc", "bc", measures=("emd",))
+    assert report.fmt_entry(p, "emd", 2).startswith("-0.02")

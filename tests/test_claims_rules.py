@@ -1,0 +1,106 @@
+"""The verdict rules of experiments.claims on constructed records: a record where DC is better
+must give "reproduced", a null one "inconclusive", a worse one "contradicted"."""
+
+import numpy as np
+import pytest
+
+from dc_lesson.evaluation import stats
+from dc_lesson.experiments import claims
+
+
+def _obs(delta, *, measure="emd", seeds=10, tasks=("t1", "t2"), noise=0.01, a="dc", b="bc",
+         seed=0):
+    """Rows ``b`` and ``a`` per task and seed; ``a = b + delta[task] + noise``; the seed effect
+    (shared warm start) is large, so only pairing can see ``delta``."""
+    rng = np.random.default_rng(seed)
+    out = []
+    for i, task in enumerate(tasks):
+        d = delta[i] if isinstance(delta, (list, tuple)) else delta
+        for s in range(seeds):
+            base = 1.0 + rng.normal(0, 0.3)
+            out.append({"task": task, "seed": s, "row": b, "n_demos": 0, measure: base})
+            out.append({"task": task, "seed": s, "row": a, "n_demos": 0,
+                        measure: base + d + rng.normal(0, noise)})
+    return out
+
+
+def test_judge_gives_each_of_its_three_answers():
+    assert claims.judge(stats.Interval(-0.1, -0.2, -0.05, 10, "x"), -1) == "reproduced"
+    assert claims.judge(stats.Interval(0.1, 0.05, 0.2, 10, "x"), -1) == "contradicted"
+    assert claims.judge(stats.Interval(0.0, -0.1, 0.1, 10, "x"), -1) == "inconclusive"
+    assert claims.judge(stats.Interval(0.3, float("nan"), float("nan"), 1, "x"), 1) == \
+        "inconclusive"
+
+
+@pytest.mark.parametrize("delta, want", [(-0.05, "reproduced"), (0.0, "inconclusive"),
+                                         (0.05, "contradicted")])
+def test_divergence_claim_on_constructed_records(delta, want):
+    v = claims.judge_claim(claims.LOWEST_DIVERGENCE, _obs(delta))
+    assert [p[1] for p in v.per_task] == [want, want]
+    assert v.verdict == f"{want} (all 2 tasks)"
+
+
+def test_a_return_gain_is_reproduced_in_the_papers_direction():
+    obs = _obs(0.2, measure="scaled_return", b="gail")
+    assert claims.judge_claim(claims.HIGHER_RETURN, obs).per_task[0][1] == "reproduced"
+    assert claims.judge_claim(claims.HIGHER_RETURN, _obs(-0.2, measure="scaled_return",
+                                                         b="gail")).per_task[0][1] == \
+        "contradicted"
+
+
+def test_tasks_that_disagree_are_counted_not_called_partly():
+    v = claims.judge_claim(claims.LOWEST_DIVERGENCE, _obs([-0.05, 0.0, 0.05],
+                                                         tasks=("t1", "t2", "t3")))
+    assert v.verdict == ("reproduced on 1 of 3 tasks, contradicted on 1 of 3 tasks, "
+                         "inconclusive on 1 of 3 tasks")
+    assert "partly" not in v.verdict
+
+
+def test_too_few_seeds_decide_nothing():
+    v = claims.judge_claim(claims.LOWEST_DIVERGENCE, _obs(-0.5, seeds=claims.MIN_SEEDS - 1))
+    assert {p[1] for p in v.per_task} == {"inconclusive"}
+    assert "fewer than" in v.evidence
+
+
+def _mode_obs(gail_top, seeds=10):
+    """Two-mode task: BC splits its episodes evenly per seed, GAIL puts ``gail_top`` of them in
+    one mode (with a little per-seed noise)."""
+    rng = np.random.default_rng(3)
+    out = []
+    for s in range(seeds):
+        e = rng.uniform(-0.03, 0.03)
+        out.append({"task": "r2", "seed": s, "row": "bc", "mode_shares":
+                    {"red": 0.5 + e, "blue": 0.5 - e}})
+        top = min(1.0, gail_top + e)
+        out.append({"task": "r2", "seed": s, "row": "gail", "mode_shares":
+                    {"red": top, "blue": 1 - top}})
+        out.append({"task": "r2", "seed": s, "row": "dc", "mode_shares":
+                    {"red": top, "blue": 1 - top}})
+    return out
+
+
+def test_mode_claims_are_judged_per_seed_beside_the_bc_start():
+    collapsed = _mode_obs(0.95)
+    v = claims.verdicts(collapsed, {"r2": {"red": 0.5, "blue": 0.5}})
+    by = {x.claim: x for x in v}
+    assert by[claims.GAIL_COLLAPSES.name].per_task[0][1] == "reproduced"
+    # DC collapsed as well: its TV from the expert's shares grew from its start's.
+    assert by[claims.DC_KEEPS_MODES.name].per_task[0][1] == "contradicted"
+    assert "gail collapsed in 10 of 10 seeds" in by[claims.GAIL_COLLAPSES.name].evidence
+    assert "bc collapsed in 0 of 10 seeds" in by[claims.GAIL_COLLAPSES.name].evidence
+    assert "TV floor for 50 episodes" in by[claims.DC_KEEPS_MODES.name].evidence
+    same = claims.verdicts(_mode_obs(0.5), {"r2": {"red": 0.5, "blue": 0.5}})
+    assert {x.claim: x for x in same}[claims.GAIL_COLLAPSES.name].per_task[0][1] == \
+        "inconclusive"
+
+
+def test_every_claim_declares_one_measure_one_comparison_and_a_reason():
+    for c in claims.CLAIMS:
+        assert c.measure and c.a and c.b and c.direction in (-1, 1) and len(c.reason) > 40
+        assert "reproduced" in c.rule and "inconclusive" in c.rule
+
+
+def test_the_stored_results_give_a_verdict_per_claim_in_the_three_words():
+    for v in claims.verdicts():
+        assert all(p[1] in claims.VERDICTS for p in v.per_task), v.claim
+        assert v.verdict.split(" ")[0] in claims.VERDICTS

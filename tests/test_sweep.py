@@ -1,0 +1,137 @@
+"""The sweep engine through Ray's local instance (one, module-scoped: it takes seconds to start):
+a sweep killed part-way and rerun ends with the same cell records as an uninterrupted one; an
+unwritable results folder fails before any compute; the dry run estimates from measured cells.
+
+The grid is bc_demos at the smoke budget on reacher4 only: the fresh reference, BC on 2
+demonstrations with 2 seeds, and the expert row's 2 samples.
+"""
+
+import dataclasses
+import json
+import os
+import pathlib
+import signal
+import subprocess
+import sys
+import time
+
+import pytest
+
+from dc_lesson import budget, storage
+from dc_lesson.experiments import cells, studies, sweep
+
+ray = pytest.importorskip("ray")
+TINY = dataclasses.replace(budget.get("smoke"), bc_demo_counts=(2,), sweep_seeds_reacher=2)
+ONLY = ["task=reacher4"]
+ROOT = pathlib.Path(__file__).resolve().parent.parent
+
+
+@pytest.fixture(scope="module")
+def local_ray():
+    sweep.start_ray(TINY, cpus=2)
+    yield
+    ray.shutdown()
+
+
+@pytest.fixture(scope="module")
+def uninterrupted(local_ray, tmp_path_factory):
+    root = tmp_path_factory.mktemp("a") / "cells"
+    report = sweep.run("bc_demos", TINY, only=ONLY, root=root, progress=False)
+    return root, report
+
+
+def _results(root) -> dict:
+    out = {}
+    for p in sorted(pathlib.Path(root).glob("*/*/*.json")):
+        r = cells.read_record(p)
+        out[str(p.relative_to(root))] = (r["cell"], r["config"], r["result"])
+    return out
+
+
+def test_an_uninterrupted_sweep_runs_every_cell_once(uninterrupted):
+    root, report = uninterrupted
+    assert (report.cells, report.ran, report.skipped, report.failed) == (5, 5, 0, [])
+    assert len(_results(root)) == 5
+    for p in root.glob("*/*/*.json"):
+        prov = json.loads(p.read_text())["provenance"]
+        assert prov["torch_threads"] == 1 and prov["budget"] == "smoke"
+        assert prov["wall_seconds"] > 0
+    again = sweep.run("bc_demos", TINY, only=ONLY, root=root, progress=False)
+    assert (again.ran, again.skipped) == (0, 5)     # nothing is ever recomputed
+
+
+def test_a_sweep_stopped_part_way_and_rerun_gives_the_same_records(uninterrupted, tmp_path):
+    root_a, _ = uninterrupted
+    root_b = tmp_path / "cells"
+    first = sweep.run("bc_demos", TINY, only=ONLY + ["seed=0"], root=root_b, progress=False)
+    assert first.ran == 3 and len(_results(root_b)) == 3    # stopped after 3 of 5 cells
+    # A killed sweep can also leave a temporary file behind: it is not a record.
+    (root_b / "bc_demos" / "reacher4" / "bc__n2__s1__x.json.123.tmp").write_text("{")
+    rest = sweep.run("bc_demos", TINY, only=ONLY, root=root_b, progress=False)
+    assert (rest.ran, rest.skipped) == (2, 3)
+    assert _results(root_b) == _results(root_a)
+
+
+def test_the_dry_run_estimates_from_measured_cells(uninterrupted, tmp_path):
+    root_a, _ = uninterrupted
+    study = studies.get("bc_demos")
+    p = sweep.plan(study, TINY, ONLY, root_a)
+    assert p["todo"] == [] and p["cpu_seconds"] == 0
+    # Copy the finished cells but one: its estimate is the wall time of its measured twin.
+    for src in root_a.glob("*/*/*"):
+        dst = tmp_path / src.relative_to(root_a)
+        dst.parent.mkdir(parents=True, exist_ok=True)
+        dst.write_bytes(src.read_bytes())
+    victim = next(tmp_path.glob("bc_demos/reacher4/bc__n2__s1__*.json"))
+    twin = json.loads(next(tmp_path.glob("bc_demos/reacher4/bc__n2__s0__*.json"))
+                      .read_text())["provenance"]["wall_seconds"]
+    victim.unlink()
+    p = sweep.plan(study, TINY, ONLY, tmp_path)
+    assert [c.seed for c in p["todo"]] == [1] and p["cpu_seconds"] == pytest.approx(twin)
+    assert "to run" in sweep.format_plan(study, TINY, p, 1)
+
+
+def test_an_unwritable_results_folder_fails_before_any_compute(tmp_path, monkeypatch):
+    blocker = tmp_path / "a_file"
+    blocker.write_text("")
+    def no_compute(*a, **k):
+        raise AssertionError("computed before checking the folder")
+    monkeypatch.setattr(sweep, "start_ray", no_compute)
+    with pytest.raises(sweep.SweepError, match="cannot be written.*nothing was computed"):
+        sweep.run("bc_demos", TINY, only=ONLY, root=blocker / "cells", progress=False)
+    from dc_lesson import cli
+    monkeypatch.setenv(storage.DATA_ENV, str(blocker))
+    assert cli.main(["sweep", "bc_demos", "--budget", "smoke"]) == 2
+
+
+def test_a_killed_sweep_process_resumes_to_the_same_records(uninterrupted, tmp_path):
+    """The real thing: `dc-lesson sweep` in a process of its own, killed (SIGKILL, with its Ray
+    workers) once the reference is stored and BC is running, then run again to the end."""
+    root_a, _ = uninterrupted
+    data = tmp_path / "data"
+    (data / "results").mkdir(parents=True)
+    for sub in ("demos", "experts"):
+        (data / sub).symlink_to(storage.DATA / sub)
+    env = {**os.environ, storage.DATA_ENV: str(data), "DC_LESSON_BUDGET": "smoke",
+           "PYTHONPATH": str(ROOT), "OMP_NUM_THREADS": "1"}
+    cmd = [sys.executable, "-m", "dc_lesson.cli", "sweep", "bc_demos", "--cpus", "1",
+           "--only", "task=reacher4", "n_demos=2", "seed=0"]
+    log = open(tmp_path / "killed.log", "w")
+    proc = subprocess.Popen(cmd, env=env, cwd=tmp_path, start_new_session=True,
+                            stdout=log, stderr=subprocess.STDOUT)
+    cells_dir = data / "results" / "cells"
+    deadline = time.time() + 480
+    while time.time() < deadline and not list(cells_dir.glob("reference/*/*.json")):
+        time.sleep(0.5)
+    os.killpg(proc.pid, signal.SIGKILL)      # the process group this test started
+    proc.wait()
+    log.close()
+    killed_with = len(list(cells_dir.glob("*/*/*.json")))
+    assert proc.returncode == -signal.SIGKILL and killed_with == 1, \
+        (tmp_path / "killed.log").read_text()[-3000:]
+    done = subprocess.run(cmd, env=env, cwd=tmp_path, capture_output=True, text=True,
+                          timeout=300)
+    assert done.returncode == 0, done.stderr[-2000:]
+    b = _results(cells_dir)
+    a = _results(root_a)
+    assert len(b) == 2 and all(b[k] == a[k] for k in b)   # the reference and BC seed 0
