@@ -116,11 +116,24 @@ class Cell:
         return pathlib.Path(root or cells_root()) / self.study / self.task / f"{self.name}.json"
 
 
+def _demos_identity(task: str, variant=None) -> dict | None:
+    from dc_lesson.data import store
+    try:
+        entry = store.manifest_entry(task, variant=variant)
+    except store.DemoError:
+        return None
+    return {"sha256": entry["sha256"], "expert": entry["expert"].get("name"),
+            "mode_choice": entry["expert"].get("mode_choice")}
+
+
 def make_cell(study: str, learner: str, task: str, n_demos: int, seed: int, config: dict, *,
               variant: str = "", stage: int = 1, needs=()) -> Cell:
-    """A cell; the hashes of ``needs`` join the config, so a new reference makes new cells."""
+    """A cell; the hashes of ``needs`` join the config, so a new reference makes new cells,
+    and so do the task's demonstrations (their sha256) and its expert (its mode choice): new
+    demonstrations or a new expert make new cells, never silently reuse old ones."""
     needs = tuple(needs)
     config = dict(config)
+    config.setdefault("demos", _demos_identity(task, config.get("demo_variant")))
     if needs:
         config["needs"] = [f"{n.study}/{n.task}/{n.name}" for n in needs]
     return Cell(study, learner, task, int(n_demos), int(seed), canonical(config), variant,
