@@ -424,7 +424,7 @@ def test_pwil_improves_on_its_start_on_reacher1():
 
 def test_learner_cost_benchmark_reports_setup_and_loop():
     from dc_lesson.perf import cost
-    out = learners.learner_costs("reacher1", ["pwil"], 2048, "smoke", warm_start_epochs=1)
+    out = cost.learner_costs("reacher1", ["pwil"], 2048, "smoke", warm_start_epochs=1)
     row, = out["rows"]
     assert row["learner"] == "pwil" and row["env_steps"] == 2048
     assert 0 < row["loop_seconds"] <= row["seconds"] + 1e-9

@@ -53,7 +53,7 @@ def test_each_run_is_consistent_with_the_manifest_and_its_own_returns(tiny_resul
         assert r["train_episodes"] + r["val_episodes"] == r["n_demos"]
         assert 1 <= r["best_epoch"] <= r["epochs_run"] <= 2
         if r["task"] == "reacher4":
-            assert set(r["mode_shares"]) == {"red", "green", "blue", "yellow"}
+            assert set(r["mode_shares"]) == {"red", "green", "blue", "yellow", "none"}
             assert sum(r["mode_shares"].values()) == pytest.approx(1.0)
         else:
             assert r["mode_shares"] is None

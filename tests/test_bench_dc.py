@@ -30,7 +30,7 @@ def test_bench_dc_writes_a_record_the_chapter_can_read(smoke_record):
     assert len(run["curve"]["param_change_l1"]) == config.loops * config.iterations
     assert set(run["bc"]) >= {"scaled_return", "emd", "kl", "rkl", "mode_shares"}
     from dc_lesson import tasks
-    assert list(run["dc"]["mode_shares"]) == list(tasks.spec("reacher2").modes)
+    assert list(run["dc"]["mode_shares"]) == [*tasks.spec("reacher2").modes, "none"]
     assert [s["method"] for s in stored["summary"]] == ["bc", "dc"]
     assert all(s["scaled_return_std"] == 0.0 for s in stored["summary"])   # one seed
 

@@ -16,7 +16,9 @@ def _cell(**config):
 
 def test_a_cell_is_named_by_its_config_hash():
     a, b = _cell(), _cell()
-    assert a == b and a.path() == b.path() and a.hash == cells.config_hash({"epochs": 3})
+    assert a == b and a.path() == b.path() and a.hash == cells.config_hash(a.config)
+    # the task's demonstrations (sha256) and expert are part of the config
+    assert a.config["epochs"] == 3 and len(a.config["demos"]["sha256"]) == 64
     c = _cell(epochs=4)
     assert c.hash != a.hash and c.path() != a.path()
     assert a.path().name == f"bc__n4__s0__{a.hash}.json"

@@ -48,7 +48,7 @@ CASES = [
     (GAILConfig, "value_warmup", -1, "zero or more"),
     (DCConfig, "lr", -1.0, "must be positive"),
     (DCConfig, "flow_lr", NAN, "must be finite"),
-    (DCConfig, "n_envs", 0, "must be positive"),
+    (DCConfig, "bc_batch_size", 0, "must be positive"),
     (DCConfig, "loops", True, "must be a whole number"),
     (DCConfig, "iterations", 0, "must be positive"),
     (DCConfig, "rho", 0.0, "must be positive"),

@@ -250,7 +250,7 @@ def test_training_only_termination_restarts_a_copy_and_stops_its_bootstrap(tmp_p
     assert adv[t, j] == pytest.approx(float(batch.env_rewards[t, j] - batch.values[t, j]),
                                       abs=1e-6)
 
-    _, _, log_full = ppo.train("hopper", config, progress=False)
+    log_full = ppo.train("hopper", None, config, progress=False).log
     ckpt = tmp_path / "run.pt"
 
     def crash(row, *_):
@@ -258,9 +258,10 @@ def test_training_only_termination_restarts_a_copy_and_stops_its_bootstrap(tmp_p
             raise Crash
 
     with pytest.raises(Crash):
-        ppo.train("hopper", config, progress=False, checkpoint=ckpt, checkpoint_every=3,
+        ppo.train("hopper", None, config, progress=False, checkpoint=ckpt, checkpoint_every=3,
                   callback=crash)
-    _, _, log = ppo.train("hopper", config, progress=False, checkpoint=ckpt, checkpoint_every=3)
+    log = ppo.train("hopper", None, config, progress=False, checkpoint=ckpt,
+                    checkpoint_every=3).log
     _assert_same_log(log_full, log)
     with pytest.raises(ValueError, match="unknown termination"):
         ppo.EnvBatch("hopper", 1, 0, terminate="nope")

@@ -287,7 +287,7 @@ def test_hopper_pays_gyms_reward_over_four_clipped_to_the_unit_interval():
 
 def test_hopper_observes_what_gym_observes():
     # qpos without the forward position, and the velocities clipped to +-10.
-    env = tasks.load("hopper", seed=0)
+    env = tasks.make("hopper", seed=0)
     env.reset()
     env.physics.data.qvel[:] = [12, -3, 0.5, -20, 1, 2]
     env.physics.forward()
@@ -298,7 +298,7 @@ def test_hopper_observes_what_gym_observes():
 
 def test_hopper_model_is_gyms():
     # Gym's Hopper-v5 numbers: 3 motors of gear 200, RK4 at 2 ms, frame skip 4, torso at 1.25 m.
-    env = tasks.load("hopper", seed=0)
+    env = tasks.make("hopper", seed=0)
     m = env.physics.model
     assert (m.nq, m.nv, m.nu) == (6, 6, 3)
     np.testing.assert_array_equal(m.actuator_gear[:, 0], [200, 200, 200])

@@ -120,6 +120,7 @@ def test_a_unit_trained_before_a_new_ppo_knob_still_counts_as_trained(tmp_path, 
     for f in ("policy", "meta"):
         shutil.copy(trained.unit_paths("halfcheetah")[f], trained.unit_paths("halfcheetah",
                                                                              tmp_path)[f])
+    shutil.copy(str(trained.unit_paths("halfcheetah")["policy"]) + ".sha256", tmp_path)
 
     def no_training(*args, **kwargs):
         raise AssertionError("retrained a unit that was already trained")

@@ -213,26 +213,29 @@ def run(tasks, demo_counts=(4, 11, 18, 25), seeds=(0, 1, 2), eval_episodes: int 
 # -- drift from the demonstrated states (compounding error) -------------------------------------
 
 def drift(task: str, demo_counts, *, seed: int = 0, n_episodes: int = 10, max_epochs: int = 200,
-          eval_seed: int = EVAL_SEED, policies: dict | None = None) -> dict:
+          eval_seed: int = EVAL_SEED, policies: dict | None = None,
+          variant: str | None = None) -> dict:
     """How far BC's states get from the demonstrated ones over an episode, against the expert.
 
     Trains BC with ``seed`` on the first n demonstrations for each n in ``demo_counts`` (or
     takes ``policies[n]`` when given), runs each policy and the task's expert for
     ``n_episodes`` fresh episodes from ``eval_seed`` (the same initial states for all), and
-    measures :func:`metrics.distance_to_expert` against *all* the task's demonstrations.
+    measures :func:`metrics.distance_to_expert` against *all* the task's demonstrations
+    (``variant``: another expert's demonstrations and that expert).
     Returns ``{"distances": {name: (n_episodes, T + 1)}, "trajectories": {name: [...]},
     "policies": {n: policy}}`` with the names ``"expert"`` and ``"BC, n demos"``.
     """
     from dc_lesson.experts import load_expert
-    reference = _data.load_demos(task)
+    reference = _data.load_demos(task, variant=variant)
     check_eval_seeds(reference, eval_seed, n_episodes)
-    expert, _ = load_expert(task)
+    expert, _ = load_expert(task, variant)
     trajs = {"expert": _rollout.collect(task, expert, n_episodes, seed=eval_seed,
                                         progress=False)}
     policies = dict(policies or {})
     for n in demo_counts:
         if n not in policies:
-            policies[n], _ = _bc.train_bc(_data.load_demos(task, n_trajectories=n),
+            policies[n], _ = _bc.train_bc(_data.load_demos(task, n_trajectories=n,
+                                                           variant=variant),
                                           _bc.BCConfig(epochs=max_epochs, seed=seed),
                                           progress=False)
         trajs[f"BC, {n} demos"] = _rollout.collect(task, policies[n], n_episodes,

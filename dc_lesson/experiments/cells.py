@@ -117,7 +117,10 @@ class Cell:
 
 
 def _demos_identity(task: str, variant=None) -> dict | None:
+    from dc_lesson import tasks as _tasks
     from dc_lesson.data import store
+    if task not in _tasks.NAMES:
+        return None   # a toy (softflow_fit's circle): no demonstrations
     try:
         entry = store.manifest_entry(task, variant=variant)
     except store.DemoError:
