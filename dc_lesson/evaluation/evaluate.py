@@ -55,9 +55,13 @@ def measure(task: str, trajectories, reference: _data.Demonstrations,
                               n_max=emd_n_max, seed=0)}
     multi = len(_tasks.spec(task).modes) > 1
     out["mode_shares"] = _metrics.mode_shares(task, trajectories) if multi else None
-    out["mode_tv"] = (_modes.total_variation(out["mode_shares"],
-                                             _modes.mode_shares(task, reference.trajectories))
-                      if multi else None)
+    out["mode_tv"] = None
+    if multi:   # against the reference's own shares: demonstrations, or fresh expert episodes
+        ref_shares = (_modes.mode_shares(task, reference.trajectories)
+                      if hasattr(reference, "trajectories")
+                      else getattr(reference, "mode_shares", None))
+        if ref_shares is not None:
+            out["mode_tv"] = _modes.total_variation(out["mode_shares"], ref_shares)
     return out
 
 
