@@ -47,15 +47,16 @@ import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
 
-from dc_lesson import budget, tasks
+from dc_lesson import notebook, tasks
 from dc_lesson.viz import plots, render
 from dc_lesson.data import rollout
 from dc_lesson.experiments import tour
 
-BUDGET = budget.current()
-print(f"budget: {BUDGET.name}")
-if BUDGET.is_smoke:
-    print("smoke budget: every number below comes from a tiny run and means nothing.")
+BUDGET = notebook.start(
+    "the random-policy returns below come from a few episodes per task and mean little; the "
+    "experts, demonstrations, floors, learning curves and rollout speeds are read from stored "
+    "results and are real. Change the budget with DC_LESSON_BUDGET=lesson (or paper) before "
+    "starting JupyterLab.")
 
 # %% [markdown]
 # ## The ten ports

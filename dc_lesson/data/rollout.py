@@ -182,8 +182,8 @@ def collect(task: str, policy: Policy, n_episodes: int, seed: int = 0, *,
         progress = n_episodes * T * spec.n_sub_steps > 200_000
     bar = None
     if progress:
-        from tqdm.auto import tqdm
-        bar = tqdm(total=n_episodes * T, desc=f"{task} rollouts", unit="step", leave=False)
+        from dc_lesson import progress as _progress
+        bar = _progress.bar(total=n_episodes * T, desc=f"{task} rollouts", unit="step", leave=False)
 
     if hasattr(policy, "attach"):
         policy.attach(venv)

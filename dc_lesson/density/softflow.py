@@ -639,9 +639,9 @@ def fit_more(flow: SoftFlow, states, config: SoftFlowConfig | None = None,
     n, bs = len(u_all), min(config.batch_size, len(u_all))
     order, pos = torch.randperm(n, generator=generator), 0
 
-    from tqdm.auto import tqdm
+    from dc_lesson import progress as _progress
     kind = "SoftFlow" if flow.noise_conditioned else "CNF"
-    bar = tqdm(total=iterations, desc=f"{kind} fit", unit="it", disable=not progress)
+    bar = _progress.bar(total=iterations, desc=f"{kind} fit", unit="it", enabled=progress)
     log: list[dict] = []
     try:
         for i in range(iterations):

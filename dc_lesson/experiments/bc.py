@@ -127,7 +127,7 @@ def run(tasks, demo_counts=(4, 11, 18, 25), seeds=(0, 1, 2), eval_episodes: int 
     (restored afterwards; None leaves it), one by default, which makes runs repeat exactly.
     """
     import torch
-    from tqdm.auto import tqdm
+    from dc_lesson import progress as _progress
 
     from dc_lesson.storage import write_result
     tasks, demo_counts, seeds = list(tasks), [int(n) for n in demo_counts], [int(s) for s in
@@ -162,8 +162,8 @@ def run(tasks, demo_counts=(4, 11, 18, 25), seeds=(0, 1, 2), eval_episodes: int 
         torch.set_num_threads(int(threads))
     runs = []
     start = time.perf_counter()
-    bar = tqdm(total=len(tasks) * len(demo_counts) * len(seeds), desc="bench bc", unit="run",
-               disable=not progress)
+    bar = _progress.bar(total=len(tasks) * len(demo_counts) * len(seeds), desc="bench bc", unit="run",
+               enabled=progress)
     try:
         for task in tasks:
             for n in demo_counts:
@@ -263,7 +263,7 @@ def run_drift(tasks, demo_counts=(4, 25), seeds=(0, 1, 2), n_episodes: int = 20,
     """:func:`drift` for each task and seed; the record (written to ``out`` when given) holds
     :func:`drift_summary` per (task, seed) and the seeds' mean of ``late_median`` per name."""
     import torch
-    from tqdm.auto import tqdm
+    from dc_lesson import progress as _progress
 
     from dc_lesson.storage import write_result
     tasks, demo_counts, seeds = list(tasks), [int(n) for n in demo_counts], [int(s) for s in
@@ -285,8 +285,8 @@ def run_drift(tasks, demo_counts=(4, 25), seeds=(0, 1, 2), n_episodes: int = 20,
     start = time.perf_counter()
     per_seed, summary = [], []
     try:
-        for task, seed in tqdm([(t, s) for t in tasks for s in seeds], desc="bench bc-drift",
-                               unit="run", disable=not progress):
+        for task, seed in _progress.bar([(t, s) for t in tasks for s in seeds], desc="bench bc-drift",
+                               unit="run", enabled=progress):
             d = drift(task, demo_counts, seed=seed, n_episodes=n_episodes,
                       max_epochs=max_epochs, eval_seed=eval_seed)
             per_seed.append({"task": task, "seed": seed,

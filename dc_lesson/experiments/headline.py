@@ -31,7 +31,7 @@ def run(task: str = "reacher4", seed: int = 0, budget: _budget.Budget | None = N
     """Trains and measures BC, GAIL and DC on ``task``; returns the measures by method and
     saves ``OUT/headline_coverage.png``."""
     import torch
-    from tqdm.auto import tqdm
+    from dc_lesson import progress as _progress
 
     budget = budget or _budget.current()
     spec = _tasks.spec(task)
@@ -39,8 +39,8 @@ def run(task: str = "reacher4", seed: int = 0, budget: _budget.Budget | None = N
     old = torch.get_num_threads()
     torch.set_num_threads(1)
     results, features, seconds = {}, {"expert": reference.mode_features}, {}
-    stages = tqdm(total=3, desc=f"headline: BC, GAIL, DC on {task}", unit="method",
-                  disable=not progress)
+    stages = _progress.bar(total=3, desc=f"headline: BC, GAIL, DC on {task}", unit="method",
+                  enabled=progress)
     try:
         t0 = time.perf_counter()
         start, demos, _ = _bc.warm_start(task, budget.il_demos, seed,

@@ -17,8 +17,8 @@ def random_returns(names=None, n_episodes: int = 10, seed: int = 0,
     out = {}
     it = names
     if progress:
-        from tqdm.auto import tqdm
-        it = tqdm(names, desc="random-policy episodes", unit="task")
+        from dc_lesson import progress as _progress
+        it = _progress.bar(names, desc="random-policy episodes", unit="task")
     for name in it:
         trajs = rollout.collect(name, rollout.RandomPolicy(name, seed), n_episodes, seed=seed,
                                 progress=False)

@@ -102,8 +102,8 @@ def collect_resumable(task: str, policy, n: int, seed: int, partial, fingerprint
     done = _resumable_episodes(task, partial, stamp, fingerprint, seed, first)[:n]
     bar = None
     if progress:
-        from tqdm.auto import tqdm
-        bar = tqdm(total=n, initial=len(done), desc=f"{task} episodes (seed {seed})",
+        from dc_lesson import progress as _progress
+        bar = _progress.bar(total=n, initial=len(done), desc=f"{task} episodes (seed {seed})",
                    unit="episode")
     while len(done) < n:
         k = min(chunk, n - len(done))
