@@ -367,7 +367,8 @@ def warm_start_policy(demos, seed: int, *, max_epochs: int = 200,
 
 
 def warm_start(task: str, n_demos: int, seed: int, *, max_epochs: int = 200,
-               log_std: float | None = WARM_START_LOG_STD, progress: bool = False):
+               log_std: float | None = WARM_START_LOG_STD, progress: bool = False,
+               variant: str | None = None):
     """BC on the first ``n_demos`` demonstrations of ``task``, ready to start GAIL or DC.
 
     Returns ``(policy, demos, log)``.  BC drives the log-std down to the spread of the
@@ -378,7 +379,7 @@ def warm_start(task: str, n_demos: int, seed: int, *, max_epochs: int = 200,
     is exactly BC's.
     """
     from dc_lesson.data import store as _store
-    demos = _store.load_demos(task, n_trajectories=n_demos)
+    demos = _store.load_demos(task, n_trajectories=n_demos, variant=variant)
     policy, log = _warm_start(demos, seed, max_epochs, log_std, progress)
     return policy, demos, log
 
