@@ -372,9 +372,6 @@ def train(task: str, demos, config: GAILConfig = GAILConfig(), *,
     if e_obs.shape[1] != spec.obs_dim or e_act.shape[1] != spec.act_dim:
         raise ValueError(f"the demonstrations have (obs, act) dims ({e_obs.shape[1]}, "
                          f"{e_act.shape[1]}); {task} has ({spec.obs_dim}, {spec.act_dim})")
-    if policy is not None and (policy.obs_dim, policy.act_dim) != (spec.obs_dim, spec.act_dim):
-        raise ValueError(f"the policy is for (obs, act) dims ({policy.obs_dim}, "
-                         f"{policy.act_dim}); {task} has ({spec.obs_dim}, {spec.act_dim})")
     init_seed, sample_seed, env_seed, disc_seed = (
         int(s) for s in np.random.SeedSequence(config.seed).generate_state(4))
     with torch.random.fork_rng(devices=[]):
