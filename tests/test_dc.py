@@ -211,3 +211,23 @@ def test_dc_beats_the_random_policy_on_reacher1():
           f"p = {p:.2g}")
     assert p < 0.01 and dc_scaled.mean() - random_scaled.mean() >= 0.3
     assert all(np.isfinite(r["bc_nll"]) for r in log if r["kind"] == "iteration")
+
+
+def test_the_gail_reward_arm_trains_a_state_discriminator_and_resumes_identical(start, tmp_path):
+    """reward="gail" (Algorithm 2 with GAIL's -log(1 - D(s')) in place of log P_w): no flow is
+    fitted, the discriminator learns (its expert accuracy is logged), and an interrupted run
+    resumes to the same parameters as an uninterrupted one."""
+    cfg = dataclasses.replace(TINY, reward="gail")
+    full = dc.train(TASK, start[1], cfg, policy=copy.deepcopy(start[0]), progress=False)
+    assert full.models["flow"] is None
+    assert [r["kind"] for r in full.log] == ["iteration"] * 4
+    assert all(0.0 <= r["disc_acc_expert"] <= 1.0 and r["reward_mean"] > 0 for r in full.log)
+    assert full.log[-1]["env_steps"] == cfg.env_steps(TASK) == 4 * cfg.batch_size
+    ckpt = tmp_path / "dc_gail.ckpt"
+    dc.train(TASK, start[1], cfg, policy=copy.deepcopy(start[0]), progress=False,
+             checkpoint=ckpt, stop_after_loop=0)
+    resumed = dc.train(TASK, start[1], cfg, policy=copy.deepcopy(start[0]), progress=False,
+                       checkpoint=ckpt)
+    assert torch.equal(_params(resumed.policy), _params(full.policy))
+    assert not torch.equal(_params(full.policy), _params(
+        dc.train(TASK, start[1], TINY, policy=copy.deepcopy(start[0]), progress=False).policy))

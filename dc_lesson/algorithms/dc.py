@@ -68,7 +68,10 @@ The paper's averaging is this with u = 0 and x_i reset to z each iteration.
   off it: as a PPO reward that scale is arbitrary and its tail would swamp the advantages.  The
   cap at the median keeps PPO from chasing the single densest state (a mode-seeking pull of its
   own); the task's rewards are in [0, 1] too, so PPO's settings carry over.  ``"raw"`` uses
-  log P_w(s') unchanged.  The quantiles are recomputed after every fit of P_w.
+  log P_w(s') unchanged.  The quantiles are recomputed after every fit of P_w.  ``"gail"`` (a
+  control arm, beyond the paper) replaces P_w by a state-only GAIL discriminator trained every
+  iteration, reward -log(1 - D(s')) (:mod:`dc_lesson.algorithms._dc_disc`): what the density
+  itself adds, with everything else of Algorithm 2 unchanged; no flow is fitted then.
 * *Steps per iteration*: one PPO update of ``ppo.n_epochs`` x ``ppo.n_minibatches`` = 32 minibatch
   steps on pi', and as many BC minibatch steps (``bc_steps``) of ``bc_batch_size`` expert pairs
   (and as many learner pairs) on pi: the same number of optimiser steps on each side of the
@@ -113,6 +116,7 @@ import torch
 
 from dc_lesson import progress as _progress
 from dc_lesson import timing as _timing
+from dc_lesson.algorithms import _dc_disc
 from dc_lesson.algorithms import bc as _bc
 from dc_lesson.algorithms.base import TrainResult, check_inputs, checkpoint_fix
 from dc_lesson.checks import check_fields
@@ -126,7 +130,7 @@ from dc_lesson.algorithms.ppo import (EnvBatch, PPOConfig, check_checkpoint, col
                            ppo_update)
 
 UPDATES = ("average", "admm")
-REWARDS = ("scaled", "raw")
+REWARDS = ("scaled", "raw", "gail")
 OPTIMIZER_STATES = ("own", "reset")
 
 
@@ -164,7 +168,8 @@ class DCConfig:
     lr: float = 3e-4             # AdamW learning rate of both copies
     weight_decay: float = 1e-4   # AdamW decoupled weight decay ("weight decay during ADMM")
     max_grad_norm: float = 0.5   # gradient clip of both steps
-    reward: str = "scaled"       # "scaled": log P_w(s') mapped to [0, 1]; "raw": log P_w(s')
+    reward: str = "scaled"       # "scaled": log P_w(s') mapped to [0, 1]; "raw": log P_w(s');
+    #                              "gail": GAIL's -log(1 - D(s')), no flow (_dc_disc, a control)
     # PPO's step on pi': PPO's own settings, nested as in GAILConfig.  DC's ``lr``,
     # ``max_grad_norm`` and ``seed`` override ``ppo``'s (one rate for both copies), its
     # learning rate is not annealed, and ``ppo.total_steps`` is unused (loops x iterations).
@@ -219,10 +224,10 @@ class DCConfig:
 
     def env_steps(self, task: str) -> int:
         """Environment interactions of a whole run: the policy batches plus the learner
-        episodes sampled for each refit of P_w."""
+        episodes sampled for each refit of P_w (none with ``reward="gail"``: no flow)."""
         horizon = _tasks.spec(task).horizon
-        return (self.loops * self.iterations * self.batch_size
-                + (self.loops - 1) * self.n_envs * horizon)
+        refits = 0 if self.reward == "gail" else self.loops - 1
+        return self.loops * self.iterations * self.batch_size + refits * self.n_envs * horizon
 
     def to_json(self) -> str:
         d = dataclasses.asdict(self)
@@ -526,10 +531,12 @@ def train(task: str, demos: Demonstrations, config: DCConfig = DCConfig(), *,
     flow_config = dataclasses.replace(config.flow_config(), seed=flow_seed)
 
     flow, scale, log = None, None, []
+    disc = (_dc_disc.DiscriminatorReward(expert_states, spec.obs_dim, flow_seed)
+            if config.reward == "gail" else None)
     loop, it = 0, 0   # the next (loop, iteration) to run; it == 0: the loop's flow fit is next
     if checkpoint is not None and pathlib.Path(checkpoint).exists():
         loop, it, flow, scale, log = _load_checkpoint(checkpoint, task, config, learner,
-                                                      generator, envs)
+                                                      generator, envs, disc)
 
     total = config.loops * config.iterations
     bar = _progress.bar(total=total, initial=loop * config.iterations + it, desc=f"DC {task}",
@@ -538,7 +545,7 @@ def train(task: str, demos: Demonstrations, config: DCConfig = DCConfig(), *,
     stopped = False
     try:
         while loop < config.loops and not stopped:
-            if it == 0:   # Stage 1: fit (loop 0) or refit P_w
+            if it == 0 and disc is None:   # Stage 1: fit (loop 0) or refit P_w
                 t0 = time.perf_counter()
                 if loop == 0:
                     states = _subsample(expert_states, config.flow_states, generator)
@@ -564,10 +571,16 @@ def train(task: str, demos: Demonstrations, config: DCConfig = DCConfig(), *,
                     copy_into(learner.pi_prime, learner.pi)   # Alg. 2: copy pi to pi'
                 batch = collect_batch(envs, learner.pi_prime, learner.value_fn,
                                       config.n_steps, generator)
-                logp = state_log_density(flow, batch.next_obs)
-                rewards = logp if config.reward == "raw" else scale(logp)
+                disc_row = {}
+                if disc is None:
+                    logp = state_log_density(flow, batch.next_obs)
+                    rewards = logp if config.reward == "raw" else scale(logp)
+                else:
+                    rewards, disc_row = disc(batch.next_obs, generator)
+                    logp = torch.full_like(rewards, math.nan)
                 row = admm_iteration(learner, batch, rewards, expert_obs, expert_act, config,
                                      generator)
+                row.update(disc_row)
                 env_steps += config.batch_size
                 it += 1
                 row = {"kind": "iteration", "loop": loop, "iteration": it,
@@ -587,13 +600,13 @@ def train(task: str, demos: Demonstrations, config: DCConfig = DCConfig(), *,
                 if checkpoint is not None and it % checkpoint_every == 0 \
                         and it < config.iterations:
                     _save_checkpoint(checkpoint, task, config, loop, it, learner, flow, scale,
-                                     generator, envs, log)
+                                     generator, envs, log, disc)
             if stopped:
                 break
             loop, it = loop + 1, 0
             if checkpoint is not None:
                 _save_checkpoint(checkpoint, task, config, loop, it, learner, flow, scale,
-                                 generator, envs, log)
+                                 generator, envs, log, disc)
             if stop_after_loop is not None and loop > stop_after_loop:
                 break
     finally:
@@ -616,19 +629,23 @@ def _learner_states(task: str, learner: Learner, config: DCConfig,
     return torch.from_numpy(np.concatenate([t.observations[1:] for t in trajs]))
 
 
-def _save_checkpoint(path, task, config, loop, it, learner, flow, scale, generator, envs, log):
+def _save_checkpoint(path, task, config, loop, it, learner, flow, scale, generator, envs, log,
+                     disc=None):
+    no_flow = flow is None   # reward="gail": a discriminator instead
     atomic_torch_save({
         "format": CHECKPOINT_FORMAT, "version": CHECKPOINT_VERSION, "task": task,
         "config": config.to_json(), "loop": loop, "iteration": it,
         "learner": _state(learner),
         "policy_args": json.dumps(learner.pi.config()),
-        "flow_args": json.dumps(flow.config()), "flow": flow.state_dict(),
-        "flow_train_config": flow.train_config.to_json(),
-        "scale": [scale.low, scale.high], "generator": generator.get_state(),
+        "flow_args": "null" if no_flow else json.dumps(flow.config()),
+        "flow": {} if no_flow else flow.state_dict(),
+        "flow_train_config": "null" if no_flow else flow.train_config.to_json(),
+        "scale": [] if no_flow else [scale.low, scale.high],
+        "disc": {} if disc is None else disc.state_dict(), "generator": generator.get_state(),
         "envs": envs.state_dict(), "log": json.dumps(log)}, path)
 
 
-def _load_checkpoint(path, task, config, learner, generator, envs):
+def _load_checkpoint(path, task, config, learner, generator, envs, disc=None):
     ckpt = load_checked(path, CHECKPOINT_FORMAT, CHECKPOINT_VERSION, "DC checkpoint",
                         checkpoint_fix(path))
     check_checkpoint(path, ckpt, task, json.loads(ckpt["config"]),
@@ -637,13 +654,17 @@ def _load_checkpoint(path, task, config, learner, generator, envs):
         raise PolicyFileError(f"DC checkpoint {path} holds a policy built as "
                               f"{ckpt['policy_args']}, not {json.dumps(learner.pi.config())}")
     _load_state(learner, ckpt["learner"])
-    flow = _softflow.SoftFlow(**json.loads(ckpt["flow_args"]))
-    flow.load_state_dict(ckpt["flow"])
-    flow.train_config = _softflow.SoftFlowConfig.from_json(ckpt["flow_train_config"])
     generator.set_state(ckpt["generator"])
     envs.load_state_dict(ckpt["envs"])
-    return (int(ckpt["loop"]), int(ckpt["iteration"]), flow, RewardScale(*ckpt["scale"]),
-            json.loads(ckpt["log"]))
+    flow = scale = None
+    if disc is not None:
+        disc.load_state_dict(ckpt["disc"])
+    elif json.loads(ckpt["flow_args"]) is not None:   # None: saved before loop 0's fit
+        flow = _softflow.SoftFlow(**json.loads(ckpt["flow_args"]))
+        flow.load_state_dict(ckpt["flow"])
+        flow.train_config = _softflow.SoftFlowConfig.from_json(ckpt["flow_train_config"])
+        scale = RewardScale(*ckpt["scale"])
+    return int(ckpt["loop"]), int(ckpt["iteration"]), flow, scale, json.loads(ckpt["log"])
 
 
 __all__ = ["DCConfig", "DC_DEFAULTS", "preset", "Learner", "RewardScale", "admm_iteration", "average_into", "copy_into",

@@ -1,0 +1,237 @@
+"""The paper's Table I in full, as cells (chapter 04; ``table1.json``): every learner and control
+on the multi-mode tasks, evaluated with the mean action and with sampled actions.
+
+Cells: per task of ``reacher4, reacher2, halfcheetah2``, seed of ``budget.seeds_for(task)`` and
+row of :data:`ROWS`, one run on the first ``il_demos`` demonstrations (the realizable experts'
+by default, the hidden-coin experts' for the ``*coin`` rows) with ``il_steps`` interactions;
+and the expert row.  A learner that starts from BC trains the seed's warm start itself (the
+same policy in every cell of that seed and demonstration set, so rows pair by seed) and
+evaluates it beside its final policy, both ways, on the same fresh episodes.
+
+The rows (``ROWS``; stage = the order a sweep runs them in, so an interrupted grid has the
+core comparison first):
+
+======================  =====  ==============================================================
+row                     stage  what it is
+======================  =====  ==============================================================
+``bc`` (start)                 the 70/30 BC warm start of every RL row (the paper's BC)
+``bc-all``              1      BC on all 18 demonstrations, early stopping on the task's 7
+                               other expert episodes (what the RL rows see, no less)
+``gail``, ``dc``        1      GAIL (D(s, a)) and DC (``reward="scaled"``) from the start
+``dc-noppo``            2      DC with its PPO step off: BC continuation, same optimiser steps
+``dc-raw``              2      DC with the paper's raw reward log P_w(s')
+``dc-gailreward``       2      Algorithm 2 with GAIL's -log(1 - D(s')) in place of log P_w
+``gail-state``          2      GAIL with a state-only D(s): action noise cannot give it away
+``dril`` ... ``gpril``  3      the paper's other baselines, from the same start
+``bc-mix``, ``dc-mix``  4      the mixture policy (4 components): BC on all 18, DC from it
+``dc-coin`` ...         4      the hidden-coin demonstrations: DC, mixture BC and DC
+======================  =====  ==============================================================
+
+Choices: the mixture DC starts from the mixture BC with its component spreads reset to
+e^-0.5 (state-independent), as the Gaussian warm start's log-std is reset, so PPO explores;
+the expert row is evaluated once (its mean action is its behaviour).
+"""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+import json
+import time
+
+import torch
+
+from dc_lesson import algorithms as _algorithms
+from dc_lesson import evaluation as _evaluation
+from dc_lesson.algorithms import bc as _bc
+from dc_lesson.data import store as _store
+from dc_lesson.experiments import cells
+from dc_lesson.experiments.studies import _common, _imitation as _im
+
+NAME = "table1"
+N_COMPONENTS = 4
+
+
+@dataclasses.dataclass(frozen=True)
+class Row:
+    learner: str
+    variant: str
+    stage: int
+    overrides: tuple = ()        # (field, value) pairs of the learner's config
+    demos: str = ""              # "" (realizable experts) or "coin"
+    mixture: bool = False        # the mixture policy (BC's, or DC from BC's)
+
+    @property
+    def name(self) -> str:
+        return self.learner + (f"-{self.variant}" if self.variant else "")
+
+
+ROWS = {r.name: r for r in (
+    Row("bc", "all", 1),
+    Row("gail", "", 1),
+    Row("dc", "", 1),
+    Row("dc", "noppo", 2, (("ppo_step", False),)),
+    Row("dc", "raw", 2, (("reward", "raw"),)),
+    Row("dc", "gailreward", 2, (("reward", "gail"),)),
+    Row("gail", "state", 2, (("disc_actions", False),)),
+    Row("dril", "", 3), Row("pwil", "", 3), Row("ndi", "", 3), Row("gpril", "", 3),
+    Row("bc", "mix", 4, mixture=True),
+    Row("dc", "mix", 4, mixture=True),
+    Row("dc", "coin", 4, demos="coin"),
+    Row("bc", "mix-coin", 4, demos="coin", mixture=True),
+    Row("dc", "mix-coin", 4, demos="coin", mixture=True),
+)}
+CORE = ("bc", "bc-all", "gail", "dc")
+
+
+def _bc_config(b, seed: int, mixture: bool) -> _bc.BCConfig:
+    return _bc.BCConfig(epochs=b.bc_max_epochs, val_fraction=0.0, stop_on_others=True,
+                        policy="mixture" if mixture else "gaussian",
+                        n_components=N_COMPONENTS, seed=seed)
+
+
+def learner_config(row: Row, b, seed: int):
+    """The row's learner config at budget ``b`` (the budget's interactions)."""
+    if row.learner == "bc":
+        return _bc_config(b, seed, row.mixture)
+    algo = _algorithms.get(row.learner)
+    if row.learner == "dc":
+        return algo.preset(b, seed, **dict(row.overrides))
+    cfg = algo.preset(b, seed)
+    return dataclasses.replace(cfg, **dict(row.overrides)) if row.overrides else cfg
+
+
+def _config_json(cfg) -> dict:
+    return _im.without_seed(json.loads(cfg.to_json()))
+
+
+def _cell(row: Row, task: str, seed: int, b) -> cells.Cell:
+    c = _im.learner_cell(NAME, row.learner, task, seed, b,
+                         _config_json(learner_config(row, b, seed)), variant=row.variant,
+                         demo_variant=row.demos or None, mixture=row.mixture)
+    return dataclasses.replace(c, stage=row.stage)
+
+
+def cells_at(b) -> list[cells.Cell]:
+    """Seed-major within a stage: an interrupted stage has every row at its first seeds."""
+    rows = sorted(ROWS.values(), key=lambda r: r.stage)
+    learners = [_cell(r, t, s, b) for r in rows for t in _im.TASKS for s in b.seeds_for(t)]
+    learners.sort(key=lambda c: (c.stage, c.seed, _im.TASKS.index(c.task)))
+    return learners + _im.expert_rows(NAME, _im.TASKS, b)
+
+
+def _mixture_start(policy):
+    """The mixture BC as a start for RL: each component's log-std set to the Gaussian warm
+    start's (state-independent), means and weights untouched."""
+    policy = copy.deepcopy(policy)
+    k, a = policy.k, policy.act_dim
+    with torch.no_grad():
+        policy.head.weight[k + k * a:].zero_()
+        policy.head.bias[k + k * a:].fill_(_bc.WARM_START_LOG_STD)
+    return policy
+
+
+def _evaluate(task, policy, reference, c, seed):
+    both = _evaluation.evaluate_both(task, policy, reference, n_episodes=c["eval_episodes"],
+                                     seed=c["eval_seed"], keep_features=True)
+    feats = both["mean"].pop("features")
+    both["sampled"].pop("features")
+    return ({a: {k: ev[k] for k in _im.protocol.MEASURED} for a, ev in both.items()},
+            _common.features({"mean": feats}, seed)["mean"])
+
+
+def run_cell(cell, needs):
+    """One row's run: its demonstrations, its start, the learner, both evaluated both ways."""
+    c = cell.config
+    row = ROWS[cell.row]
+    b = _im.sized_budget(c)
+    cfg = learner_config(row, b, cell.seed)
+    _im.check_config(cell, json.loads(cfg.to_json()))
+    reference = _common.reference(needs)
+    variant = c["demo_variant"]
+    demos = _store.load_demos(cell.task, n_trajectories=c["n_demos"], variant=variant)
+    t0 = time.perf_counter()
+    out, feats = {}, {}
+    if row.learner == "bc":
+        result = _bc.train(cell.task, demos, cfg, progress=False)
+    else:
+        if row.mixture:
+            start = _mixture_start(_bc.train(cell.task, demos, _bc_config(b, cell.seed, True),
+                                             progress=False).policy)
+        else:
+            start = _bc.warm_start_policy(demos, cell.seed, max_epochs=c["bc_max_epochs"])
+        t_start = time.perf_counter()
+        out["start"], feats["start"] = _evaluate(cell.task, start, reference, c, cell.seed)
+        out["start_seconds"] = time.perf_counter() - t_start
+        t0 = time.perf_counter()
+        result = _algorithms.get(row.learner).train(cell.task, demos, cfg,
+                                                    policy=copy.deepcopy(start), progress=False)
+    out["train_seconds"] = time.perf_counter() - t0
+    out["final"], feats["final"] = _evaluate(cell.task, result.policy, reference, c, cell.seed)
+    last = result.log[-max(1, len(result.log) // 10):]
+    out["log_final"] = {k: _common.finite(sum(r[k] for r in last) / len(last))
+                        for k in last[0] if all(isinstance(r.get(k), (int, float))
+                                                and not isinstance(r.get(k), bool)
+                                                for r in last)} if last else {}
+    return out, feats
+
+
+# -- the aggregate ----------------------------------------------------------------------------
+
+ACTIONS = ("mean", "sampled")
+
+
+def observations(records, actions: str) -> list[dict]:
+    """One observation per policy a cell evaluated with ``actions``: the start of an RL row
+    becomes row ``bc`` (the 70/30 warm start; ``bc-coin`` on the coin demonstrations,
+    ``bc-mixstart`` for the mixture's reset start), kept once per (task, seed, start)."""
+    from dc_lesson.experiments import aggregate as _agg
+    obs, seen = [], set()
+    for r in records:
+        res = r["result"]
+        if "measures" in res:      # the expert row: one evaluation, its mean action
+            obs.append(_agg.observation(r, res["measures"]))
+            continue
+        row = ROWS[r["cell"]["learner"] + (f"-{r['cell']['variant']}"
+                                            if r["cell"]["variant"] else "")]
+        if "start" in res:
+            start = ("bc-mixstart" if row.mixture else "bc") + ("-coin" if row.demos else "")
+            key = (r["cell"]["task"], r["cell"]["seed"], start)
+            if key not in seen:
+                seen.add(key)
+                obs.append(_agg.observation(r, res["start"][actions], row=start))
+        obs.append(_agg.observation(r, res["final"][actions]))
+    return obs
+
+
+PAIRS = (("dc", "bc"), ("dc", "gail"), ("dc", "bc-all"), ("gail", "bc"), ("bc-all", "bc"),
+         ("dc", "dc-noppo"), ("dc", "dc-raw"), ("dc", "dc-gailreward"), ("gail", "gail-state"),
+         ("dc", "dril"), ("dc", "pwil"), ("dc", "ndi"), ("dc", "gpril"),
+         ("bc-mix", "bc-all"), ("dc-mix", "dc"), ("dc-coin", "bc-coin"),
+         ("bc-mix-coin", "bc-coin"), ("dc-mix-coin", "dc-coin"))
+
+
+def aggregate(records, b) -> dict:
+    from dc_lesson.experiments import aggregate as _agg
+    out = {"interval": "95% bootstrap (BCa) over seeds; paired: of the per-seed differences",
+           "protocol": _im.protocol_config(b), "rows": {k: dataclasses.asdict(v)
+                                                        for k, v in ROWS.items()}}
+    eval_episodes = records[0]["config"].get("eval_episodes", b.il_eval_episodes)
+    shares = _im.reference_shares(records)
+    for actions in ACTIONS:
+        obs = observations(records, actions)
+        if actions == "sampled":   # the expert row is the same under both
+            obs += [o for o in observations(records, "mean") if o["row"] == "expert"]
+        out[actions] = {
+            "table": _agg.table([o for o in obs if o["row"] != "expert"]),
+            "expert": _agg.table([o for o in obs if o["row"] == "expert"]),
+            "paired": [p for a, bb in PAIRS for p in _agg.paired(obs, a, bb)],
+            "modes": _im.mode_summary(obs, shares, eval_episodes),
+            "observations": obs}
+    return out
+
+
+STUDY = cells.Study(NAME, "Table I: every learner and control on the multi-mode tasks",
+                    cells=cells_at,
+                    run_cell=lambda c, n: _common.run_expert_or(c, n, run_cell),
+                    aggregate=aggregate, result_file="table1.json")
