@@ -372,7 +372,7 @@ def cmd_aggregate(args) -> int:
     from dc_lesson.experiments import aggregate, cells, studies
     b = budget.get(args.budget) if args.budget else budget.current()
     try:
-        path = aggregate.write(args.study, b, command=_command_line())
+        path = aggregate.write(args.study, b, command=_command_line(), partial=args.partial)
     except (studies.UnknownStudyError, cells.CellError, aggregate.AggregateError) as e:
         print(f"dc-lesson: {e}", file=sys.stderr)
         return 2
@@ -490,6 +490,8 @@ def build_parser() -> argparse.ArgumentParser:
     s = sub.add_parser("aggregate", help="a finished study's cells -> data/results/STUDY.json")
     s.add_argument("study")
     s.add_argument("--budget", default=None)
+    s.add_argument("--partial", action="store_true", help="aggregate the cells run so far "
+                   "(a grid still accumulating; the file says how many of how many)")
     s.set_defaults(func=cmd_aggregate)
     return p
 

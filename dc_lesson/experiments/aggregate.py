@@ -116,10 +116,18 @@ def iqm_over_tasks(obs: list[dict], row: str, measure: str = "scaled_return") ->
             **stats.iqm_ci(x).to_dict()}
 
 
-def grid_records(study: _cells.Study, b: _budget.Budget, root=None) -> list[dict]:
-    """The records of the study's current grid; fails, naming the command, if any is missing."""
+def grid_records(study: _cells.Study, b: _budget.Budget, root=None,
+                 partial: bool = False) -> list[dict]:
+    """The records of the study's current grid; fails, naming the command, if any is missing
+    (with ``partial``: the records that exist, none of the missing ones invented)."""
     grid = [c for c in study.grid(b) if c.study == study.name]
     missing = [c for c in grid if not c.path(root).exists()]
+    if partial:
+        if len(missing) == len(grid):
+            raise AggregateError(f"none of the {len(grid)} cells of {study.name} at budget "
+                                 f"{b.name} has run; run: dc-lesson sweep {study.name} "
+                                 f"--budget {b.name}")
+        return [_cells.read_record(c.path(root)) for c in grid if c not in missing]
     if missing:
         raise AggregateError(f"{len(missing)} of the {len(grid)} cells of {study.name} at budget "
                              f"{b.name} have not run (first: {missing[0].task}/{missing[0].name});"
@@ -128,14 +136,18 @@ def grid_records(study: _cells.Study, b: _budget.Budget, root=None) -> list[dict
 
 
 def write(study_name: str, b: _budget.Budget | None = None, *, root=None, results=None,
-          command: str = "") -> pathlib.Path:
-    """Aggregates a complete study and writes ``RESULTS/STUDY.json``; returns the path."""
+          command: str = "", partial: bool = False) -> pathlib.Path:
+    """Aggregates a complete study and writes ``RESULTS/STUDY.json``; returns the path.
+
+    ``partial``: aggregate the cells that have run so far (a grid still accumulating); the
+    record's ``cells`` says how many of how many, and ``complete`` is False."""
     from dc_lesson.experiments import studies
     b = b or _budget.current()
     study = studies.get(study_name)
     if study.aggregate is None:
         raise AggregateError(f"study {study.name} has no aggregate (it is read by others)")
-    recs = grid_records(study, b, root)
+    recs = grid_records(study, b, root, partial=partial)
+    n_grid = len([c for c in study.grid(b) if c.study == study.name])
     payload = study.aggregate(recs, b)
     path = pathlib.Path(results or storage.RESULTS) / (study.result_file or
                                                        f"{study.name}.json")
@@ -143,7 +155,8 @@ def write(study_name: str, b: _budget.Budget | None = None, *, root=None, result
               "benchmark": study.name, "budget": b.name, "revision": storage.git_revision(),
               "time": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
               "seeds": sorted({r["cell"]["seed"] for r in recs}),
-              "cells": {"n": len(recs),
+              "complete": len(recs) == n_grid,
+              "cells": {"n": len(recs), "of": n_grid,
                         "revisions": sorted({r["provenance"]["revision"] for r in recs}),
                         "wall_seconds": float(sum(r["provenance"]["wall_seconds"]
                                                   for r in recs)),

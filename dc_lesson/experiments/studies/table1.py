@@ -168,12 +168,24 @@ def run_cell(cell, needs):
                                                     policy=copy.deepcopy(start), progress=False)
     out["train_seconds"] = time.perf_counter() - t0
     out["final"], feats["final"] = _evaluate(cell.task, result.policy, reference, c, cell.seed)
+    out["curve"] = _curve(result.log)
     last = result.log[-max(1, len(result.log) // 10):]
     out["log_final"] = {k: _common.finite(sum(r[k] for r in last) / len(last))
                         for k in last[0] if all(isinstance(r.get(k), (int, float))
                                                 and not isinstance(r.get(k), bool)
                                                 for r in last)} if last else {}
     return out, feats
+
+
+CURVE_KEYS = ("env_steps", "steps", "episode_return", "param_change_l1", "pi_pi_prime_l1",
+              "reward_mean", "loop")
+
+
+def _curve(log) -> dict:
+    """The training log's learning-curve columns (iterations only; a flow row has none)."""
+    rows = [r for r in log if r.get("kind", "iteration") == "iteration"]
+    return {k: [_common.finite(r.get(k)) for r in rows] for k in CURVE_KEYS
+            if rows and any(k in r for r in rows)}
 
 
 # -- the aggregate ----------------------------------------------------------------------------
@@ -200,7 +212,10 @@ def observations(records, actions: str) -> list[dict]:
             if key not in seen:
                 seen.add(key)
                 obs.append(_agg.observation(r, res["start"][actions], row=start))
-        obs.append(_agg.observation(r, res["final"][actions]))
+        extra = {"curve": res.get("curve")}
+        if row.learner == "dc":   # iterations per loop: the convergence claim's unit
+            extra["iterations"] = r["config"]["dc"]["iterations"]
+        obs.append(_agg.observation(r, res["final"][actions], **extra))
     return obs
 
 

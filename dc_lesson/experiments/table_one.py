@@ -1,0 +1,183 @@
+"""Chapter 04's Table I, read from the ``table1`` study's aggregate (``data/results/table1.json``,
+``dc-lesson sweep table1`` then ``dc-lesson aggregate table1``): the table with intervals for
+either evaluation, the paired comparisons, the mode-coverage summary, the paper's values beside
+ours, and the one rule that turns a control's paired interval into a word.
+
+A control arm answers a question the paper did not ask ("what does the SoftFlow reward add?"),
+so it has no predicted sign: its word is ``higher`` or ``lower`` when the paired 95% interval of
+``a - b`` excludes zero (and at least ``claims.MIN_SEEDS`` seeds are paired), ``no difference
+detected`` when it includes zero, and ``too few seeds`` otherwise.
+"""
+
+from __future__ import annotations
+
+import math
+
+from dc_lesson.experiments import claims
+from dc_lesson.experiments.report import fmt, fmt_entry
+from dc_lesson.storage import read_result
+
+RESULT = "table1.json"
+TASKS = ("reacher2", "reacher4", "halfcheetah2")
+
+# Row, what it is (the order of the chapter's table).
+ROWS = {
+    "expert": "expert vs expert (the floor)",
+    "bc": "BC, 70/30 split (the paper's; every RL row's start)",
+    "bc-all": "BC on all 18, early stop on other expert episodes",
+    "gail": "GAIL, D(s, a)",
+    "gail-state": "GAIL, state-only D(s)",
+    "dc": "DC (scaled log P reward)",
+    "dc-raw": "DC, the paper's raw log P reward",
+    "dc-noppo": "DC without its PPO step (BC continuation)",
+    "dc-gailreward": "Algorithm 2 with GAIL's reward for log P",
+    "dril": "DRIL", "pwil": "PWIL", "ndi": "NDI", "gpril": "GPRIL",
+    "bc-mix": "mixture BC (4 components), all 18",
+    "dc-mix": "DC from the mixture BC",
+    "bc-coin": "BC 70/30, hidden-coin demonstrations",
+    "dc-coin": "DC, hidden-coin demonstrations",
+    "bc-mix-coin": "mixture BC, hidden-coin demonstrations",
+    "dc-mix-coin": "mixture DC, hidden-coin demonstrations",
+}
+
+# The paper's Table I (EMD, KL, RKL); its GPRIL row is omitted ("no meaningful results").
+PAPER_TABLE_I = {
+    "reacher2": {"bc": (1.01, 2.60, 4.38), "gail": (0.84, 2.47, 4.51),
+                 "dril": (1.00, 2.51, 4.25), "pwil": (0.67, 2.47, 3.46),
+                 "ndi": (0.68, 2.49, 3.54), "dc": (0.58, 2.47, 3.35)},
+    "reacher4": {"bc": (0.81, 4.23, 6.33), "gail": (0.41, 4.49, 6.22),
+                 "dril": (0.55, 5.16, 6.16), "pwil": (0.52, 5.13, 5.95),
+                 "ndi": (0.54, 5.15, 6.02), "dc": (0.40, 4.04, 5.77)},
+    "halfcheetah2": {"bc": (1.81, 6.74, 12.78), "gail": (1.75, 4.52, 18.13),
+                     "dril": (1.83, 6.90, 12.76), "pwil": (1.56, 4.23, 12.56),
+                     "ndi": (1.60, 4.26, 12.63), "dc": (1.52, 4.06, 12.43)},
+}
+
+# The controls: (a, b, measure, the question it answers).
+CONTROLS = (
+    ("bc-all", "bc", "scaled_return", "does BC trained on all 18 demonstrations beat the 70/30 BC?"),
+    ("dc", "dc-noppo", "emd", "what does DC's PPO step on log P add to BC continuation?"),
+    ("dc", "dc-raw", "emd", "does our scaled reward differ from the paper's raw log P?"),
+    ("dc", "dc-gailreward", "emd", "does the SoftFlow density beat a discriminator in Alg. 2?"),
+    ("gail", "gail-state", "emd", "does a state-only discriminator change GAIL?"),
+    ("dc-mix", "dc", "emd", "does the mixture policy help DC?"),
+    ("bc-mix", "bc-all", "emd", "does the mixture policy help BC?"),
+)
+
+
+def load(name: str = RESULT) -> dict | None:
+    """The aggregate, or None while the study has not been aggregated."""
+    try:
+        return read_result(name)
+    except FileNotFoundError:
+        return None
+
+
+def status(rec: dict) -> str:
+    """``N of M cells (complete|still accumulating), budget, revision``."""
+    c = rec["cells"]
+    done = "complete" if rec.get("complete", True) else "still accumulating"
+    return (f"{c['n']} of {c.get('of', c['n'])} cells ({done}), budget {rec['budget']}, "
+            f"{c['wall_seconds'] / 3600:.1f} CPU-hours of cells; {rec['command']}")
+
+
+def _order(row: str) -> int:
+    keys = list(ROWS)
+    return keys.index(row) if row in keys else len(keys)
+
+
+def table(rec: dict, actions: str = "mean", digits: int = 3) -> list[dict]:
+    """One dict per (task, row): n seeds, EMD / KL / RKL / scaled return as ``mean [lo, hi]``,
+    the TV of mode shares from the reference's (mean [lo, hi]) and the mean shares."""
+    part = rec[actions]
+    tv = {(m["task"], m["row"]): m for m in part["modes"]}
+    out = []
+    for r in sorted(part["expert"] + part["table"],
+                    key=lambda r: (TASKS.index(r["task"]) if r["task"] in TASKS else 9,
+                                   _order(r["row"]))):
+        m = tv.get((r["task"], r["row"]))
+        out.append({"task": r["task"], "row": r["row"], "seeds": r["n_seeds"],
+                    **{label: fmt_entry(r, key, digits) for label, key in
+                       (("EMD", "emd"), ("KL", "kl"), ("RKL", "rkl"),
+                        ("scaled return", "scaled_return")) if f"{key}_mean" in r},
+                    "mode TV": fmt(m["tv_ci"]["mean"], m["tv_ci"]["lo"], m["tv_ci"]["hi"],
+                                   2) if m else "",
+                    "collapsed seeds": (f"{round(m['collapsed_share'] * m['n_seeds'])}/"
+                                        f"{m['n_seeds']}") if m else "",
+                    "modes": ", ".join(f"{k} {v:.2f}" for k, v in
+                                       r.get("mode_shares_mean", {}).items())})
+    return out
+
+
+def paired(rec: dict, a: str, b: str, task: str, actions: str = "mean") -> dict | None:
+    """The paired entry ``a - b`` on ``task`` (None if the two rows share no seed yet)."""
+    for p in rec[actions]["paired"]:
+        if p["a"] == a and p["b"] == b and p["task"] == task:
+            return p
+    return None
+
+
+def word(entry: dict | None, measure: str) -> str:
+    """The control rule (module docstring) on one paired entry."""
+    if not entry or measure not in entry:
+        return "not run yet"
+    d = entry[measure]
+    if entry["n_seeds"] < claims.MIN_SEEDS or d["lo"] is None or d["hi"] is None:
+        return "too few seeds"
+    if d["lo"] > 0:
+        return "higher"
+    if d["hi"] < 0:
+        return "lower"
+    return "no difference detected"
+
+
+def controls(rec: dict, actions: str = "mean") -> list[dict]:
+    """Every control on every task: the question, ``a - b`` with its interval, the word."""
+    out = []
+    for a, b, measure, question in CONTROLS:
+        for task in TASKS:
+            e = paired(rec, a, b, task, actions)
+            d = (e or {}).get(measure)
+            out.append({"question": question, "task": task, "measure": measure,
+                        "a - b": f"{a} - {b}",
+                        "difference": fmt(d["mean"], d["lo"], d["hi"], 3) if d else "",
+                        "seeds": e["n_seeds"] if e else 0, "word": word(e, measure)})
+    return out
+
+
+def beside_paper(rec: dict, actions: str = "mean") -> list[dict]:
+    """Our EMD / KL / RKL means beside the paper's, for the rows the paper has.  The scales
+    differ (our states are the ports' observations, our EMD is on mode features): compare the
+    orderings within a task, not the values."""
+    ours = {(r["task"], r["row"]): r for r in rec[actions]["table"]}
+    out = []
+    for task, rows in PAPER_TABLE_I.items():
+        for row, (emd, kl, rkl) in rows.items():
+            r = ours.get((task, row))
+            out.append({"task": task, "row": row, "paper EMD": emd, "paper KL": kl,
+                        "paper RKL": rkl,
+                        **({"our EMD": r["emd_mean"], "our KL": r["kl_mean"],
+                            "our RKL": r["rkl_mean"], "our seeds": r["n_seeds"]} if r else {})})
+    return out
+
+
+def rank_agreement(rec: dict, task: str, measure: str = "emd", actions: str = "mean") -> dict:
+    """Which learner is lowest on ``measure`` in the paper's table and in ours (the rows both
+    have), and whether they agree."""
+    idx = {"emd": 0, "kl": 1, "rkl": 2}[measure]
+    ours = {r["row"]: r[f"{measure}_mean"] for r in rec[actions]["table"]
+            if r["task"] == task and r["row"] in PAPER_TABLE_I[task]}
+    if not ours:
+        return {"task": task, "paper_lowest": None, "our_lowest": None, "agree": None}
+    paper = {k: v[idx] for k, v in PAPER_TABLE_I[task].items() if k in ours}
+    lo_p, lo_o = min(paper, key=paper.get), min(ours, key=ours.get)
+    return {"task": task, "paper_lowest": lo_p, "our_lowest": lo_o, "agree": lo_p == lo_o,
+            "rows": sorted(ours)}
+
+
+def finite(x) -> bool:
+    return x is not None and math.isfinite(x)
+
+
+__all__ = ["CONTROLS", "PAPER_TABLE_I", "RESULT", "ROWS", "TASKS", "beside_paper", "controls",
+           "load", "paired", "rank_agreement", "status", "table", "word"]
