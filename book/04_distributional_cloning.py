@@ -32,7 +32,9 @@
 #    paper's Figures 1, 7, 10 and Table I), the loop ablation (Figure 3), the learning-rate
 #    sweep (Figure 4), return against interactions (Figure 5), the update's convergence
 #    (Figure 6), and averaging against consensus ADMM;
-# 7. the paper's claims, one by one: reproduced, partly reproduced or not, on our ports.
+# 7. Table I on experts a Markov policy can follow, with controls, both evaluations and
+#    paired intervals over seeds;
+# 8. the paper's claims, one by one: reproduced, contradicted or inconclusive, on our ports.
 
 # %%
 import copy
@@ -42,7 +44,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
 import torch
-from IPython.display import display
+from IPython.display import Markdown, display
 
 from dc_lesson.algorithms import bc, dc
 from dc_lesson.experiments import dc as bench_dc, gail as bench_gail, claims
@@ -243,13 +245,12 @@ plots.coverage_reacher(features, 4)
 plt.show()
 
 # %% [markdown]
-# ## The benchmark: BC, GAIL and DC on the multi-mode tasks
+# ## The first experiment: experts that flip a hidden coin
 #
-# One live seed says little. `dc-lesson bench dc --out data/results/dc_modes.json` runs the
-# protocol above for three seeds on `reacher4`, `reacher2` and `halfcheetah2`, and
-# `dc-lesson bench gail` did the same for GAIL (chapter 2), from the same warm starts (same
-# demonstrations, seeds and BC settings), with the same interactions and the same evaluation
-# episodes. The table is our Table I: mean ± standard deviation over seeds.
+# Our first benchmark (`dc-lesson bench dc`, three seeds, `data/results/dc_modes.json`, and
+# GAIL's `gail_modes.json` from the same warm starts) used experts that chose their mode by a
+# coin flip per episode that nothing in the observation reveals. Mean ± standard deviation over
+# the three seeds; the reference is all 25 demonstrations, 18 of which the learners trained on.
 
 # %%
 dc_modes = read_result("dc_modes.json")
@@ -264,69 +265,28 @@ def pm(r, m, digits):
     return f"{r[m + '_mean']:.{digits}f} ± {r[m + '_std']:.{digits}f}"
 
 
-table_one = pd.DataFrame([{
+coin_table = pd.DataFrame([{
     "task": r["task"], "approach": r["method"], "EMD": pm(r, "emd", 3), "KL": pm(r, "kl", 2),
     "RKL": pm(r, "rkl", 2), "scaled return": pm(r, "scaled_return", 3),
     "modes": ", ".join(f"{k} {v:.2f}" for k, v in r.get("mode_shares_mean", {}).items())}
     for r in rows]).set_index(["task", "approach"])
 with pd.option_context("display.max_colwidth", 80):
-    display(table_one)
+    display(coin_table)
+by = {(r["task"], r["method"]): r for r in rows}
+top = {t: max(by[t, "DC"]["mode_shares_mean"].items(), key=lambda kv: kv[1])
+       for t in ("reacher2", "halfcheetah2")}
+display(Markdown(
+    f"DC's largest mode took {top['reacher2'][1]:.2f} of its episodes on `reacher2` "
+    f"({top['reacher2'][0]}) and {top['halfcheetah2'][1]:.2f} on `halfcheetah2` "
+    f"({top['halfcheetah2'][0]}), where the coin gives each mode about half. No Markov "
+    f"unimodal policy can follow a choice it does not observe: it can only split the start "
+    f"states between modes, however it is trained. The paper's experts were TRPO Gaussian "
+    f"MLPs, the learner's own class, whose modes came from the start state and the action "
+    f"noise; so this experiment asks a question the paper did not. The next section explains "
+    f"what does decide mode coverage, and then comes the experiment that can answer the "
+    f"paper's question."))
 
 # %% [markdown]
-# ### Mode coverage (the paper's Figures 1, 10 and 7)
-#
-# Where each policy goes, pooled over the three seeds' evaluation episodes. BC's features come
-# from the DC file (the runs' start), GAIL's from GAIL's file.
-
-# %%
-f_dc = bench_dc.load_features("dc_modes.json")
-f_gail = bench_gail.load_features("gail_modes.json")
-seeds = dc_modes["seeds"]
-
-
-def pooled(store, task, method):
-    return np.concatenate([store[bench_gail.feature_key(task, method, s)] for s in seeds])
-
-
-for task, k in (("reacher4", 4), ("reacher2", 2)):
-    plots.coverage_reacher({"expert": f_dc[bench_gail.feature_key(task, "expert")],
-                            "BC": pooled(f_dc, task, "BC"), "GAIL": pooled(f_gail, task, "GAIL"),
-                            "DC": pooled(f_dc, task, "DC")}, k)
-    plt.suptitle(f"{task}: mode coverage, 3 seeds pooled", y=1.02)
-    plt.show()
-plots.coverage_velocity({"expert": f_dc[bench_gail.feature_key("halfcheetah2", "expert")],
-                         "BC": pooled(f_dc, "halfcheetah2", "BC"),
-                         "GAIL": pooled(f_gail, "halfcheetah2", "GAIL"),
-                         "DC": pooled(f_dc, "halfcheetah2", "DC")},
-                        title="halfcheetah2: forward velocity, 3 seeds pooled")
-plt.show()
-
-# %% [markdown]
-# What the stored runs show (each statement is checked against the files by
-# `tests/test_claims_dc.py`):
-#
-# * **`reacher4` and `halfcheetah2`: DC has the lowest EMD, KL and RKL of the three**, as in the
-#   paper's Table I (reacher4 EMD 0.080 against BC's 0.116 and GAIL's 0.159). **`reacher2`: it
-#   does not**: BC keeps the lowest divergences there, and DC's EMD (0.144) lies between BC's and
-#   GAIL's.
-# * **Return: DC beats both baselines on `reacher2` and `halfcheetah2`** (halfcheetah2 0.75 ±
-#   0.04 against BC's 0.57 ± 0.33 and GAIL's 0.31), **but not on `reacher4`**, where its mean
-#   (0.39) is below its own BC start (0.45); seed by seed it gained on two starts and lost
-#   heavily on the third (0.61 to 0.18). With three seeds and standard deviations near 0.2 to
-#   0.4, none of these return differences is large against the spread.
-# * **DC does not recover the expert's mode mix.** On `reacher2` it sends 0.92 of its episodes
-#   to red, on `halfcheetah2` 0.93 run backwards; on `reacher4` it spreads over three targets
-#   but visits yellow in 0.01 of its episodes. Chapter 2 explains why a mean-action Gaussian
-#   cannot reproduce a coin flip it does not observe; DC uses the same policy class, and this
-#   limit binds it too. What DC changes is *where the states go* (lower EMD on two tasks), not
-#   the proportions of the modes.
-#
-# These runs answer a question the paper did not ask. Their experts chose the mode by a coin flip
-# per episode that nothing in the observation reveals, so *no* Markov unimodal policy could
-# follow them, however it was trained; the paper's experts were TRPO Gaussian MLPs, whose modes
-# came from the start state and the action noise. The next section explains what does decide
-# mode coverage, and the experiment that can answer the paper's question.
-#
 # ## What decides mode coverage
 #
 # **A toy you can run in seconds.** The target $p$ is a 1-D mixture of two Gaussians at
@@ -405,17 +365,110 @@ for task in ("reacher2", "reacher4", "halfcheetah2"):
 display(pd.DataFrame(rows).fillna(""))
 
 # %% [markdown]
-# Beside the realizable experts the library now has what the question needs: evaluation with
-# the mean action *and* with sampled actions (`evaluation.evaluate_both`: Eq. 2 is a statement
+# Beside the realizable experts the library has what the question needs: evaluation with the
+# mean action *and* with sampled actions (`evaluation.evaluate_both`; Eq. 2 is a statement
 # about the stochastic policy, and a policy's mode shares can differ between the two), the
-# total-variation distance of mode shares from the expert's (`mode_tv`), and a policy that can
-# hold several modes (`nn.MixturePolicy`, usable by BC, PPO and DC). The rerun of this chapter's
-# benchmark on the realizable experts, with controls (BC on all 18 demonstrations, DC without
-# its PPO step, DC with the paper's raw reward), both evaluations and 95% intervals over 10
-# seeds, runs as a sweep of cells; until its cells are in `data/results/`, the verdicts below
-# rest on the coin-flip runs above and say nothing about whether DC keeps modes an expert a
-# Markov policy can follow shows it.
+# total-variation distance of a seed's mode shares from the expert's, and a policy that can
+# hold several modes (`nn.MixturePolicy`, usable by BC, PPO and DC).
 #
+# ## Table I, on experts a Markov policy can follow
+#
+# `dc-lesson sweep table1` runs every learner and control of `experiments.studies.table1` on
+# the three multi-mode tasks as cells: 10 seeds on the reachers, 5 on `halfcheetah2`, 18
+# demonstrations, 300,000 interactions after the BC warm start, 50 fresh evaluation episodes
+# scored against 100 fresh expert episodes (not the training demonstrations), each policy
+# evaluated with its mean action and with sampled actions. Rows of one seed share their BC
+# start, so every comparison below is *paired by seed*, with a 95% bootstrap interval of the
+# per-seed differences. The controls isolate what each part of DC does: BC trained on all 18
+# demonstrations (what the RL rows see; early stopping on the task's 7 other expert
+# episodes), DC without its PPO step, DC with the paper's raw reward, Algorithm 2 with GAIL's
+# discriminator reward in place of $\log P_\omega$, and GAIL with a state-only discriminator
+# (which the learner's action noise cannot give away). The `expert` row is the expert scored
+# like a learner on disjoint episodes: the floor below which differences mean nothing.
+# `dc-lesson aggregate table1 --partial` aggregates whatever cells have run; the line below
+# says how complete the grid is.
+
+# %%
+from dc_lesson.experiments import table_one
+
+t1 = table_one.load()
+if t1 is None:
+    print("table1 has not run yet: dc-lesson sweep table1 && dc-lesson aggregate table1")
+else:
+    print(table_one.status(t1))
+    for actions in ("mean", "sampled"):
+        frame = pd.DataFrame(table_one.table(t1, actions)).set_index(["task", "row"])
+        print(f"\n{actions} action" + (" (the expert row is its mean action)"
+                                        if actions == "sampled" else ""))
+        with pd.option_context("display.max_colwidth", 70, "display.width", 250):
+            display(frame)
+
+# %% [markdown]
+# Lower is better for EMD, KL, RKL and mode TV; higher for the scaled return (0 random, 1
+# expert). "Collapsed seeds" counts the seeds whose largest mode took at least 0.8 of their
+# episodes. Where each policy goes, pooled over the seeds that have run (mean action):
+
+# %%
+if t1 is not None:
+    names = {"expert": "expert", "bc": "BC", "gail": "GAIL", "dc": "DC"}
+    for task, k in (("reacher4", 4), ("reacher2", 2), ("halfcheetah2", 0)):
+        feats = {label: table_one.features(t1, task, row) for row, label in names.items()}
+        feats["BC"] = table_one.features(t1, task, "dc", which="start")
+        feats = {n: f for n, f in feats.items() if f is not None}
+        if len(feats) < 2:
+            continue
+        if k:
+            plots.coverage_reacher(feats, k)
+            plt.suptitle(f"{task}: mode coverage, seeds pooled (realizable expert)", y=1.02)
+        else:
+            plots.coverage_velocity(feats, title="halfcheetah2: forward velocity, seeds "
+                                                 "pooled (realizable expert)")
+        plt.show()
+
+# %% [markdown]
+# ### The paper's claims on Table I, and what the controls say
+#
+# Each claim's rule was declared before the numbers (`dc_lesson.experiments.claims`): one
+# primary measure, one paired comparison, and the word from the paired 95% interval:
+# *reproduced* if it excludes zero on the paper's side, *contradicted* if on the other,
+# *inconclusive* if it includes zero or rests on fewer than 5 paired seeds. Under both
+# evaluations:
+
+# %%
+if t1 is not None:
+    table_claims = {claims.LOWEST_DIVERGENCE.name, claims.HIGHER_RETURN.name,
+                    claims.GAIL_COLLAPSES.name, claims.DC_KEEPS_MODES.name}
+    for actions in ("mean", "sampled"):
+        vs = [v for v in claims.verdicts(actions=actions) if v.claim in table_claims]
+        print(f"\n{actions} action")
+        with pd.option_context("display.max_colwidth", 400):
+            display(pd.DataFrame([{"claim": v.claim, "verdict": v.verdict,
+                                   "evidence": v.evidence} for v in vs]).set_index("claim"))
+
+# %% [markdown]
+# The controls have no predicted sign: each says *higher*, *lower* or *no difference
+# detected* from its paired interval (`table_one.word`), on the measure named.
+
+# %%
+if t1 is not None:
+    with pd.option_context("display.max_colwidth", 90, "display.width", 250):
+        display(pd.DataFrame(table_one.controls(t1)).set_index(["question", "task"]))
+
+# %% [markdown]
+# **Beside the paper.** The paper's Table I has BC, GAIL, DRIL, PWIL, NDI and DC. Its states
+# and divergences are on another scale (its observations, its estimator), so compare which
+# learner is lowest within a task, not the values:
+
+# %%
+if t1 is not None:
+    display(pd.DataFrame(table_one.beside_paper(t1)).set_index(["task", "row"]).round(3))
+    for task in table_one.TASKS:
+        r = table_one.rank_agreement(t1, task)
+        if r["our_lowest"] is not None:
+            print(f"{task}: lowest EMD in the paper {r['paper_lowest']}, in ours "
+                  f"{r['our_lowest']} (of the rows both have that ran: {', '.join(r['rows'])})")
+
+# %% [markdown]
 # ## Return against environment interactions (the paper's Figure 5)
 #
 # The return of the *stochastic* training episodes as they finish, DC's (π' sampling) and
@@ -515,9 +568,9 @@ fig, ax = plt.subplots(figsize=(6.5, 3.2))
 for r in ablation["admm"]:
     c = r["curve"]
     ax.semilogy(c["primal_residual"], color="tab:purple", alpha=0.7,
-                label="primal" if r["seed"] == seeds[0] else None)
+                label="primal" if r["seed"] == ablation["seeds"][0] else None)
     ax.semilogy(c["dual_residual"], color="tab:olive", alpha=0.7,
-                label="dual" if r["seed"] == seeds[0] else None)
+                label="dual" if r["seed"] == ablation["seeds"][0] else None)
 ax.set_xlabel("iteration")
 ax.set_ylabel("residual")
 ax.set_title("consensus ADMM on reacher4: residuals (each seed a line)")
@@ -571,28 +624,26 @@ verdicts = pd.DataFrame([vars(v) for v in claims.verdicts()]).set_index("claim")
 with pd.option_context("display.max_colwidth", 200):
     display(verdicts[["source", "verdict", "evidence", "rule"]])
 
+# %%
+def said(v):
+    return f"**{v.claim}** ({v.source}): {v.verdict}"
+
+
+display(Markdown("In short, by their rules, on the files above (mean action for the Table I "
+                 "claims):\n\n" + "\n".join(f"* {said(v)}" for v in claims.verdicts())))
+
 # %% [markdown]
-# In short, against our files: the claims about **learning-rate robustness**, **return with
-# few interactions** (DC's stochastic training episodes score higher than GAIL's over the
-# first third of the interactions on all three tasks) and **convergence** of the update (the
-# parameter change per iteration shrinks within every loop, to a median 0.83 of its first
-# quarter) are reproduced by their rules; the robustness result needs a caveat: GAIL already
-# falls from its 0.97 BC start at 3e-4, not only at 1e-3 and above, and DC's flat curve partly
-# reflects that on `halfcheetah` it barely moves its near-expert start. **Lowest divergences**,
-# **higher return**, **GAIL collapses** and **loops** are partly reproduced, and **DC preserves
-# every mode** is not reproduced.
-#
 # ## What it took
 #
-# The paper reports 6 hours of GPU time to train $P_\omega$ alone on Reacher. Here:
+# The paper reports 6 hours of GPU time to train $P_\omega$ alone on Reacher. Here, the
+# measured wall time of one cell (BC start, the learner, four evaluations), one CPU thread
+# each, mean over the seeds that have run:
 
 # %%
-r4 = [r for r in dc_modes["runs"] if r["task"] == "reacher4"]
-print(f"reacher4, {len(r4)} seeds at budget {dc_modes['budget']}: BC warm start "
-      f"{np.mean([r['bc']['seconds'] for r in r4]):.0f} s, DC "
-      f"{np.mean([r['dc']['train_seconds'] for r in r4]):.0f} s (of which P_ω "
-      f"{np.mean([r['dc']['flow_seconds'] for r in r4]):.0f} s), one CPU thread, "
-      f"{r4[0]['dc']['env_steps']:,} interactions")
+if t1 is not None:
+    cost = pd.DataFrame(table_one.costs(t1))
+    display((cost.pivot(index="row", columns="task", values="minutes")
+             .reindex([r for r in table_one.ROWS if r in set(cost["row"])]).round(1)))
 print(f"this chapter ran in {time.perf_counter() - CHAPTER_START:.0f} s at budget "
       f"{BUDGET.name}")
 
@@ -601,14 +652,12 @@ print(f"this chapter ran in {time.perf_counter() - CHAPTER_START:.0f} s at budge
 #
 # * DC is BC plus a PPO step on a state-density reward, averaged in parameter space; the
 #   paper's "ADMM" has no dual variable, and real consensus ADMM did not help here.
-# * On our ports DC gave the lowest EMD/KL/RKL on two of three multi-mode tasks, the best
-#   return on two of three, was insensitive to the learning rate where GAIL was not, and
-#   converged in the sense of Figure 6; it did not reproduce the expert's mode proportions.
-#   Those runs used hidden-coin experts, which no Markov unimodal policy can follow, and DC's
-#   RL term is mode-seeking by construction (the toy); the test on realizable experts is the
-#   sweep still to run.
-# * At the lesson budget a DC run on `reacher4` took the wall time printed above on one CPU
-#   thread of a shared machine; the paper reports 6 GPU hours for the flow alone.
+# * Its RL term, $\mathbb{E}_q[\log P]$, is mode-seeking by construction (the toy): whatever
+#   keeps DC's modes comes from its BC term and its start.
+# * With experts that flip a hidden coin no Markov unimodal policy can match the expert's
+#   mode mix; with experts that choose from the start state the question is fair, and the
+#   Table I section gives the answer our runs support, claim by claim and control by
+#   control, with its intervals (and how many of the grid's cells it rests on).
 #
 # ## Exercises
 #
@@ -624,7 +673,9 @@ print(f"this chapter ran in {time.perf_counter() - CHAPTER_START:.0f} s at budge
 #    advantages?
 # 4. **Duals.** Run `update="admm"` with `rho` 0.1, 1 and 10. How do the primal and dual
 #    residuals behave, and how far apart do the BC and PPO copies drift?
-# 5. **Who picks the mode?** The reacher experts choose a target by a coin flip the learner
-#    cannot see (chapter 0). Train DC with the mean action and evaluate it with
-#    `policies.StochasticPolicy`. Do the mode shares change? What would a policy need to
-#    reproduce the expert's 25/25/25/25?
+# 5. **Who picks the mode?** The `coin` experts choose a target by a coin flip the learner
+#    cannot see (`data.load_demos("reacher4", variant="coin")`). Train BC on them and
+#    evaluate with `evaluation.evaluate_both`. Do the mode shares change between the mean
+#    action and sampled actions? What would a policy need to reproduce the expert's
+#    25/25/25/25? Try `BCConfig(policy="mixture")` and compare the mode TV of the two
+#    (the `bc-mix-coin` row of Table I is this experiment over 10 seeds).

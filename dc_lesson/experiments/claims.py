@@ -263,6 +263,20 @@ def observations() -> tuple[list, dict, str]:
     return obs, ref, "whole-grid files (3 seeds; reference = all demonstrations)"
 
 
+def table1_observations(actions: str = "mean") -> tuple[list, dict, str] | None:
+    """``(observations, reference mode shares, source)`` of the ``table1`` aggregate (the
+    realizable experts, 10 seeds on the reachers, either evaluation), None until it exists."""
+    rec = _load("table1.json")
+    if not rec or actions not in rec:
+        return None
+    from dc_lesson.experiments.studies import _imitation
+    obs = [o for o in rec[actions]["observations"] if o["row"] != "expert"]
+    tasks = [{"cell": {"task": t}} for t in dict.fromkeys(o["task"] for o in obs)]
+    c = rec["cells"]
+    return (obs, _imitation.reference_shares(tasks),
+            f"table1: {c['n']} of {c.get('of', c['n'])} cells, {actions} action")
+
+
 def _worst_lr(obs, learner) -> list[dict]:
     rows = [o for o in obs if o["task"] == "lr" and o["row"].startswith(learner + "-lr=")]
     out = {}
@@ -292,10 +306,17 @@ def _mode_evidence(obs, task_rows, reference_shares, n_episodes: int) -> str:
 
 
 def verdicts(obs=None, reference_shares=None, source: str = "",
-             eval_episodes: int = 50) -> list[Verdict]:
-    """Every claim, judged (module docstring); from the stored results by default."""
+             eval_episodes: int = 50, actions: str = "mean") -> list[Verdict]:
+    """Every claim, judged (module docstring); from the stored results by default: the
+    multi-mode claims from the ``table1`` study once it has cells (its ``actions``
+    evaluation), the loop and learning-rate claims from their own studies."""
     if obs is None:
         obs, reference_shares, source = observations()
+        t1 = table1_observations(actions)
+        if t1 is not None:
+            rows = {o["row"] for o in t1[0]}
+            obs = t1[0] + [o for o in obs if o["row"] not in rows]
+            reference_shares, source = t1[1], t1[2]
     reference_shares = reference_shares or {}
     multi = [t for t in dict.fromkeys(o["task"] for o in obs) if t != "lr"]
     out = []
@@ -346,4 +367,5 @@ CLAIMS = (LOWEST_DIVERGENCE, HIGHER_RETURN, GAIL_COLLAPSES, DC_KEEPS_MODES, LOOP
           FASTER, CONVERGES)
 
 __all__ = ["CLAIMS", "COLLAPSE_SHARE", "MIN_SEEDS", "Claim", "VERDICTS", "Verdict", "count", "judge",
-           "judge_claim", "legacy_observations", "observations", "table_one", "verdicts"]
+           "judge_claim", "legacy_observations", "observations", "table1_observations",
+           "table_one", "verdicts"]

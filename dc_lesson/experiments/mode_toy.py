@@ -105,7 +105,7 @@ def fit(family: str, objective: str, steps: int = 1500, n: int = 2048, lr: float
         with torch.no_grad():
             log_stds.clamp_(min=math.log(1e-3))
         if step % 20 == 0:
-            curve.append(float(loss))
+            curve.append(float(loss.detach()))
     with torch.no_grad():
         w = torch.softmax(logits, -1)
         s = log_stds.exp()

@@ -33,10 +33,12 @@ ROWS = {
     "dc-gailreward": "Algorithm 2 with GAIL's reward for log P",
     "dril": "DRIL", "pwil": "PWIL", "ndi": "NDI", "gpril": "GPRIL",
     "bc-mix": "mixture BC (4 components), all 18",
+    "bc-mixstart": "mixture BC, spreads reset to e^-0.5 (dc-mix's start)",
     "dc-mix": "DC from the mixture BC",
     "bc-coin": "BC 70/30, hidden-coin demonstrations",
     "dc-coin": "DC, hidden-coin demonstrations",
     "bc-mix-coin": "mixture BC, hidden-coin demonstrations",
+    "bc-mixstart-coin": "mixture BC with spreads reset, hidden-coin demonstrations",
     "dc-mix-coin": "mixture DC, hidden-coin demonstrations",
 }
 
@@ -175,9 +177,41 @@ def rank_agreement(rec: dict, task: str, measure: str = "emd", actions: str = "m
             "rows": sorted(ours)}
 
 
+def features(rec: dict, task: str, row: str, which: str = "final") -> "np.ndarray | None":
+    """The mode features of ``row`` on ``task`` (mean action), pooled over the seeds that have
+    run, from the cells of the study's current grid at the aggregate's budget; ``row="expert"``
+    gives the fresh reference's.  ``which``: ``"final"`` or ``"start"`` (an RL row's BC start).
+    None when no cell has them."""
+    import numpy as np
+    from dc_lesson import budget as _budget
+    from dc_lesson.experiments import cells as _cells, protocol, studies
+    if row == "expert":
+        ref = protocol.reference_cell(task)
+        return _cells.read_features(ref.path())["features"] if ref.path().exists() else None
+    grid = studies.get("table1").grid(_budget.get(rec["budget"]))
+    parts = [_cells.read_features(c.path())[which] for c in grid
+             if c.study == "table1" and c.task == task and c.row == row and c.path().exists()]
+    return np.concatenate(parts) if parts else None
+
+
+def costs(rec: dict) -> list[dict]:
+    """Per (task, row) of the cells that have run: their mean wall time in minutes (one
+    worker, one torch thread) and how many cells that is."""
+    from dc_lesson import budget as _budget
+    from dc_lesson.experiments import cells as _cells, studies
+    walls: dict = {}
+    for c in studies.get("table1").grid(_budget.get(rec["budget"])):
+        if c.study == "table1" and c.path().exists():
+            w = _cells.read_record(c.path())["provenance"]["wall_seconds"]
+            walls.setdefault((c.task, c.row), []).append(w)
+    return [{"task": t, "row": r, "minutes": sum(w) / len(w) / 60, "cells": len(w)}
+            for (t, r), w in walls.items()]
+
+
 def finite(x) -> bool:
     return x is not None and math.isfinite(x)
 
 
 __all__ = ["CONTROLS", "PAPER_TABLE_I", "RESULT", "ROWS", "TASKS", "beside_paper", "controls",
+           "costs", "features",
            "load", "paired", "rank_agreement", "status", "table", "word"]

@@ -234,9 +234,7 @@ def aggregate(records, b) -> dict:
     eval_episodes = records[0]["config"].get("eval_episodes", b.il_eval_episodes)
     shares = _im.reference_shares(records)
     for actions in ACTIONS:
-        obs = observations(records, actions)
-        if actions == "sampled":   # the expert row is the same under both
-            obs += [o for o in observations(records, "mean") if o["row"] == "expert"]
+        obs = observations(records, actions)   # the expert row: its one evaluation in both
         out[actions] = {
             "table": _agg.table([o for o in obs if o["row"] != "expert"]),
             "expert": _agg.table([o for o in obs if o["row"] == "expert"]),
