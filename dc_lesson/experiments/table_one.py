@@ -194,6 +194,21 @@ def features(rec: dict, task: str, row: str, which: str = "final") -> "np.ndarra
     return np.concatenate(parts) if parts else None
 
 
+def curves(rec: dict, task: str, row: str) -> list[dict]:
+    """``{"seed", "steps", "episode_return", "param_change_l1", "iterations"}`` per seed of
+    ``row`` on ``task`` that has run: its training log's curves (interactions on ``steps``)."""
+    out = []
+    for o in rec["mean"]["observations"]:
+        c = o.get("curve")
+        if o["task"] != task or o["row"] != row or not c:
+            continue
+        steps = c.get("env_steps") or c.get("steps")
+        out.append({"seed": o["seed"], "steps": steps, "episode_return": c.get(
+            "episode_return"), "param_change_l1": c.get("param_change_l1"),
+            "iterations": o.get("iterations")})
+    return sorted(out, key=lambda d: d["seed"])
+
+
 def costs(rec: dict) -> list[dict]:
     """Per (task, row) of the cells that have run: their mean wall time in minutes (one
     worker, one torch thread) and how many cells that is."""
@@ -213,5 +228,5 @@ def finite(x) -> bool:
 
 
 __all__ = ["CONTROLS", "PAPER_TABLE_I", "RESULT", "ROWS", "TASKS", "beside_paper", "controls",
-           "costs", "features",
+           "costs", "curves", "features",
            "load", "paired", "rank_agreement", "status", "table", "word"]
