@@ -1,4 +1,5 @@
-"""Chapter 04's statements about stored results, checked against the result files.
+"""Chapter 04's stored coin-flip benchmark: the protocol it describes and the rules that judge
+it (the chapter renders its numbers from the files, so no rounded copy is pinned here).
 
 Files: data/results/dc_modes.json (+ .npz), dc_ablation.json, dc_lr.json, written by
 ``dc-lesson bench dc | dc-ablation | dc-lr``, and GAIL's gail_modes.json, gail_lr.json.
@@ -54,53 +55,10 @@ def test_features_file_has_every_run(dc_modes):
         assert f"{t}__expert" in f
 
 
-def _rows():
-    return {(r["task"], r["method"]): r for r in claims.table_one()}
-
-
-def test_chapter04_table_prose_holds():
-    r = _rows()
-    for task in ("reacher4", "halfcheetah2"):
-        for m in ("emd", "kl", "rkl"):
-            assert r[task, "DC"][f"{m}_mean"] < min(r[task, "BC"][f"{m}_mean"],
-                                                   r[task, "GAIL"][f"{m}_mean"]), (task, m)
-    assert round(r["reacher4", "DC"]["emd_mean"], 3) == 0.080
-    e = {k: r["reacher2", k]["emd_mean"] for k in ("BC", "GAIL", "DC")}
-    assert e["BC"] < e["DC"] < e["GAIL"] and round(e["DC"], 3) == 0.144
-    for task in ("reacher2", "halfcheetah2"):
-        assert r[task, "DC"]["scaled_return_mean"] > max(r[task, "BC"]["scaled_return_mean"],
-                                                         r[task, "GAIL"]["scaled_return_mean"])
-    assert r["reacher4", "DC"]["scaled_return_mean"] < r["reacher4", "BC"]["scaled_return_mean"]
-    assert round(r["halfcheetah2", "DC"]["scaled_return_mean"], 2) == 0.75
-    assert round(r["reacher2", "DC"]["mode_shares_mean"]["red"], 2) == 0.92
-    assert round(r["halfcheetah2", "DC"]["mode_shares_mean"]["backward"], 2) == 0.93
-    assert round(r["reacher4", "DC"]["mode_shares_mean"]["yellow"], 2) == 0.01
-
-
-def test_chapter04_reacher4_seed1_lost_return(dc_modes):
-    s1 = next(x for x in dc_modes["runs"] if x["task"] == "reacher4" and x["seed"] == 1)
-    assert round(s1["bc"]["scaled_return"], 2) == 0.61 and round(s1["dc"]["scaled_return"], 2) == 0.18
-    gains = [x["dc"]["scaled_return"] > x["bc"]["scaled_return"]
-             for x in dc_modes["runs"] if x["task"] == "reacher4"]
-    assert sum(gains) == 2
-
-
-def test_chapter04_ablation_prose_holds(dc_modes):
-    ab = read_result("dc_ablation.json")
-    ret = [round(x["dc"]["scaled_return"], 2) for x in ab["loops"]]
-    assert ret == [0.17, 0.57, 0.30, 0.67, 0.28]
-    assert ab["loops"][4]["dc"]["train_seconds"] < ab["loops"][3]["dc"]["train_seconds"]
-    avg = [x["dc"] for x in dc_modes["runs"] if x["task"] == "reacher4"]
-    admm = ab["admm_summary"]
-    assert admm["scaled_return_mean"] < np.mean([x["scaled_return"] for x in avg])
-    assert admm["emd_mean"] > np.mean([x["emd"] for x in avg])
-    assert round(admm["scaled_return_mean"], 2) == 0.23
-
-
 def test_chapter04_verdicts_from_the_three_seed_files_decide_nothing():
     """The whole-grid files have 3 seeds (2 in the learning-rate sweeps): below
     claims.MIN_SEEDS, so every task's verdict is inconclusive, whatever its interval."""
-    for v in claims.verdicts():
+    for v in claims.verdicts(*claims.observations()):
         assert {p[1] for p in v.per_task} <= {"inconclusive"}, v.claim
         assert all(p[5] < claims.MIN_SEEDS for p in v.per_task)
     gail_lr = {s["lr"]: s["scaled_return_mean"] for s in read_result("gail_lr.json")["summary"]}

@@ -1,0 +1,153 @@
+"""The table1 study (chapter 04's Table I): its rows, their configs, the mixture start, the
+observations its aggregate pairs, the control rule, and one real cell at smoke."""
+
+import copy
+import json
+
+import numpy as np
+import pytest
+import torch
+
+from dc_lesson import budget
+from dc_lesson.algorithms import bc
+from dc_lesson.experiments import aggregate, cells, table_one
+from dc_lesson.experiments.studies import table1
+from dc_lesson.nn.mixture import MixturePolicy
+
+LESSON = budget.get("lesson")
+
+
+def test_every_row_is_listed_for_every_task_and_seed_with_the_core_first():
+    grid = table1.cells_at(LESSON)
+    learners = [c for c in grid if c.learner != "expert"]
+    for row in table1.ROWS:
+        for task in ("reacher4", "reacher2", "halfcheetah2"):
+            seeds = sorted(c.seed for c in learners if c.row == row and c.task == task)
+            assert seeds == list(LESSON.seeds_for(task)), (row, task)
+    stages = [c.stage for c in learners]
+    assert stages == sorted(stages), "a sweep runs stage by stage: the list is in stage order"
+    first = [c for c in learners if c.stage == 1]
+    assert {c.row for c in first} == {"bc-all", "gail", "dc"}
+    # seed-major inside a stage: every row of seed 0 comes before any row of seed 1
+    assert max(i for i, c in enumerate(first) if c.seed == 0) < \
+        min(i for i, c in enumerate(first) if c.seed == 1)
+    assert len({c.name for c in grid if c.task == "reacher4"}) == \
+        len([c for c in grid if c.task == "reacher4"]), "cell names are unique"
+
+
+def test_each_control_changes_exactly_what_its_name_says():
+    cfg = {r: json.loads(table1.learner_config(table1.ROWS[r], LESSON, 0).to_json())
+           for r in table1.ROWS}
+    base_dc = cfg["dc"]
+    for row, field, value in (("dc-noppo", "ppo_step", False), ("dc-raw", "reward", "raw"),
+                              ("dc-gailreward", "reward", "gail")):
+        diff = {k for k in base_dc if base_dc[k] != cfg[row][k]}
+        assert diff == {field} and cfg[row][field] == value, row
+    assert {k for k in cfg["gail"] if cfg["gail"][k] != cfg["gail-state"][k]} == \
+        {"disc_actions"}
+    assert cfg["bc-all"]["stop_on_others"] and cfg["bc-all"]["val_fraction"] == 0
+    assert cfg["bc-mix"]["policy"] == "mixture" and cfg["bc-all"]["policy"] == "gaussian"
+    # the coin rows read other demonstrations, so their cells' configs (and hashes) differ
+    c = {r: next(x for x in table1.cells_at(LESSON) if x.row == r and x.task == "reacher4"
+                 and x.seed == 0) for r in ("dc", "dc-coin")}
+    assert c["dc"].config["demos"]["sha256"] != c["dc-coin"].config["demos"]["sha256"]
+    assert c["dc-coin"].config["demo_variant"] == "coin"
+
+
+def test_the_mixture_start_keeps_means_and_weights_and_resets_every_spread():
+    torch.manual_seed(0)
+    pol = MixturePolicy(6, 2, n_components=3, hidden=(16, 16))
+    with torch.no_grad():   # a trained-looking head: state-dependent, small spreads
+        pol.head.weight.normal_(0, 0.5)
+        pol.head.bias.normal_(-3, 0.5)
+    start = table1._mixture_start(pol)
+    obs = torch.randn(64, 6)
+    w0, m0, s0 = pol.components(obs)
+    w1, m1, s1 = start.components(obs)
+    assert torch.equal(w0, w1) and torch.equal(m0, m1)
+    assert torch.allclose(s1, torch.full_like(s1, bc.WARM_START_LOG_STD))
+    assert not torch.allclose(s0, s1)
+    assert torch.equal(pol.components(obs)[2], s0), "the original is not changed"
+
+
+def _record(row, task, seed, start=None, final=None):
+    learner, _, variant = row.partition("-")
+    res = {"final": {"mean": final, "sampled": final}}
+    if start is not None:
+        res["start"] = {"mean": start, "sampled": start}
+    return {"cell": {"learner": learner, "variant": variant, "task": task, "n_demos": 18,
+                     "seed": seed}, "config": {"dc": {"iterations": 5}}, "result": res}
+
+
+def test_observations_name_each_start_and_keep_it_once():
+    m = lambda v: {"emd": v, "scaled_return": 1 - v, "mode_shares": None}
+    recs = [_record("dc", "reacher4", 0, m(0.3), m(0.2)),
+            _record("gail", "reacher4", 0, m(0.3), m(0.4)),
+            _record("dc-coin", "reacher4", 0, m(0.5), m(0.6)),
+            _record("dc-mix", "reacher4", 0, m(0.7), m(0.1)),
+            _record("bc-all", "reacher4", 0, None, m(0.25))]
+    obs = table1.observations(recs, "mean")
+    rows = sorted(o["row"] for o in obs)
+    assert rows == sorted(["bc", "dc", "gail", "bc-coin", "dc-coin", "bc-mixstart", "dc-mix",
+                           "bc-all"])
+    assert next(o for o in obs if o["row"] == "dc")["iterations"] == 5
+
+
+def _paired(delta, n_seeds, noise=0.01):
+    rng = np.random.default_rng(1)
+    obs = []
+    for s in range(n_seeds):
+        base = rng.normal(0.5, 0.2)
+        obs += [{"row": "dc", "task": "t", "n_demos": 18, "seed": s,
+                 "emd": base + delta + rng.normal(0, noise)},
+                {"row": "dc-noppo", "task": "t", "n_demos": 18, "seed": s, "emd": base}]
+    (p,) = aggregate.paired(obs, "dc", "dc-noppo", measures=("emd",))
+    return p
+
+
+@pytest.mark.parametrize("delta, n, want", [(0.05, 10, "higher"), (-0.05, 10, "lower"),
+                                            (0.0, 10, "no difference detected"),
+                                            (-0.05, 3, "too few seeds")])
+def test_the_control_rule_gives_each_of_its_words(delta, n, want):
+    assert table_one.word(_paired(delta, n), "emd") == want
+    assert table_one.word(None, "emd") == "not run yet"
+
+
+def test_a_partial_aggregate_says_how_much_of_the_grid_it_rests_on(tmp_path, monkeypatch):
+    """Aggregating a grid with cells missing: refused without --partial (naming the command),
+    written with it, saying n of N and complete False."""
+    study = cells.Study("toy_partial", "toy", cells=lambda b: [
+        cells.make_cell("toy_partial", "dc", "toy", 1, s, {"x": 1}) for s in range(4)],
+        run_cell=None, aggregate=lambda recs, b: {"seeds_seen": [r["cell"]["seed"]
+                                                                for r in recs]})
+    for c in study.cells(budget.get("smoke"))[:3]:
+        cells.write_record(c, {"v": c.seed}, None, cells.provenance(
+            command="test", budget="smoke", threads=1, wall_seconds=1.0), root=tmp_path)
+    from dc_lesson.experiments import studies
+    monkeypatch.setattr(studies, "get", lambda name: study)
+    with pytest.raises(aggregate.AggregateError, match="1 of the 4 cells"):
+        aggregate.write("toy_partial", budget.get("smoke"), root=tmp_path, results=tmp_path)
+    path = aggregate.write("toy_partial", budget.get("smoke"), root=tmp_path,
+                           results=tmp_path, partial=True)
+    rec = json.loads(path.read_text())
+    assert rec["complete"] is False and rec["cells"]["n"] == 3 and rec["cells"]["of"] == 4
+    assert rec["seeds_seen"] == [0, 1, 2]
+
+
+def test_one_mixture_dc_cell_runs_at_smoke_and_repeats(tmp_path, monkeypatch):
+    """The costliest path of the study (mixture BC, its reset start, DC from it, four
+    evaluations) runs end to end, and the same cell gives the same numbers twice."""
+    from dc_lesson.experiments import protocol
+    smoke = budget.get("smoke")
+    cell = next(c for c in table1.cells_at(smoke) if c.row == "dc-mix" and c.task == "reacher2"
+                and c.seed == 0)
+    ref = protocol.reference_cell("reacher2")
+    if not ref.path().exists():
+        pytest.skip("the reacher2 reference cell is not stored")
+    needs = [(cells.read_record(ref.path()), cells.read_features(ref.path()))]
+    a, fa = table1.run_cell(cell, needs)
+    b, fb = table1.run_cell(cell, needs)
+    assert cells.split_timing(a)[0] == cells.split_timing(b)[0]   # wall times aside
+    assert np.array_equal(fa["final"], fb["final"])
+    assert set(a["final"]) == {"mean", "sampled"} and set(a["start"]) == {"mean", "sampled"}
+    assert set(a["final"]["mean"]["mode_shares"]) == {"red", "blue", "none"}
