@@ -277,7 +277,7 @@ for p in maf.parameters():
 x, c = torch.randn(1, 2), torch.randn(1, 1)
 jac = torch.autograd.functional.jacobian(lambda v: maf.to_base(v[None], c)[0][0], x[0])
 u = maf.to_base(x, c)[0][0]
-direct = torch.distributions.Normal(0.0, 1.0).log_prob(u).sum() + torch.slogdet(jac)[1]
+direct = torch.distributions.Normal(0.0, 1.0).log_prob(u).sum().detach() + torch.slogdet(jac)[1]
 print(f"MAF log p = {float(maf.log_prob(x, c).detach()):.5f}; change of variables by hand "
       f"{float(direct):.5f}; Jacobian (upper entry {float(jac[0, 1]):.1e}: triangular)")
 assert abs(float(maf.log_prob(x, c).detach()) - float(direct.detach())) < 1e-4
@@ -336,13 +336,43 @@ pd.DataFrame(cost_record["rows"]).set_index("learner")[
     ["env_steps", "setup_seconds", "loop_seconds", "seconds_per_100k", "load_average"]].round(1)
 
 # %% [markdown]
-# ## Stored results (placeholder)
+# ## Their rows of Table I
 #
-# **Placeholder: nothing is read here yet.** The four learners' rows of Table I and their
-# coverage plots on `reacher4`, `reacher2` and `halfcheetah2` (three seeds, the imitation
-# protocol's budget) will be read from the stored sweep once it has run; until then this
-# section shows no numbers.
+# The four run in chapter 4's Table I study (`dc-lesson sweep table1`: the realizable
+# multi-mode experts, 18 demonstrations, 300,000 interactions from the same BC start as GAIL
+# and DC, 10 seeds on the reachers and 5 on `halfcheetah2`, mean action). Each row is paired
+# with DC and with the BC start by seed; the paired differences carry 95% bootstrap
+# intervals. The table shows what has run so far (the status line says how much of the grid).
 
+# %%
+from dc_lesson.experiments import table_one
+
+t1 = table_one.load()
+BASELINES = ("dril", "pwil", "ndi", "gpril")
+if t1 is None:
+    print("table1 has not run yet: dc-lesson sweep table1 && dc-lesson aggregate table1")
+else:
+    print(table_one.status(t1))
+    keep = ("expert", "bc", "gail", "dc") + BASELINES
+    frame = pd.DataFrame([r for r in table_one.table(t1) if r["row"] in keep])
+    if len(frame):
+        display(frame.set_index(["task", "row"]))
+    diffs = []
+    for row in BASELINES:
+        for task in table_one.TASKS:
+            for a, b in (("dc", row), (row, "bc")):
+                e = table_one.paired(t1, a, b, task)
+                if e and "emd" in e:
+                    diffs.append({"task": task, "a - b": f"{a} - {b}", "seeds": e["n_seeds"],
+                                  "EMD": table_one.fmt_entry(e, "emd", 3),
+                                  "scaled return": table_one.fmt_entry(e, "scaled_return", 3),
+                                  "EMD word": table_one.word(e, "emd")})
+    if diffs:
+        display(pd.DataFrame(diffs).set_index(["task", "a - b"]))
+    else:
+        print("no baseline cell has run yet (they are stage 3 of the sweep)")
+
+# %% [markdown]
 # %% [markdown]
 # ## Exercises
 #

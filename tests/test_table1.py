@@ -151,3 +151,14 @@ def test_one_mixture_dc_cell_runs_at_smoke_and_repeats(tmp_path, monkeypatch):
     assert np.array_equal(fa["final"], fb["final"])
     assert set(a["final"]) == {"mean", "sampled"} and set(a["start"]) == {"mean", "sampled"}
     assert set(a["final"]["mean"]["mode_shares"]) == {"red", "blue", "none"}
+
+
+def test_only_the_rows_that_own_a_start_evaluate_it():
+    """The controls and baselines share the core rows' Gaussian start on the realizable
+    demonstrations: they skip its evaluation; the mixture and coin rows evaluate their own."""
+    for c in table1.cells_at(LESSON):
+        if c.learner in ("expert", "bc"):
+            continue
+        row = table1.ROWS[c.row]
+        owns = row.stage == 1 or row.mixture or bool(row.demos)
+        assert c.config.get("evaluate_start", True) is owns, c.row

@@ -317,6 +317,7 @@ def verdicts(obs=None, reference_shares=None, source: str = "",
             rows = {o["row"] for o in t1[0]}
             obs = t1[0] + [o for o in obs if o["row"] not in rows]
             reference_shares, source = t1[1], t1[2]
+            eval_episodes = _load("table1.json")["protocol"]["eval_episodes"]
     reference_shares = reference_shares or {}
     multi = [t for t in dict.fromkeys(o["task"] for o in obs) if t != "lr"]
     out = []

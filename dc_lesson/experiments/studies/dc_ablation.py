@@ -1,10 +1,10 @@
 """DC's ablations, as cells (the paper's Figure 3; ``dc_ablation.json``).
 
-Cells, on ``reacher4``: the loop ablation (variant ``loops=L`` for L = 1..4 loops of a fixed
+Cells, on ``hopper`` with 11 demonstrations (the paper's setting): the loop ablation (variant ``loops=L`` for L = 1..4 loops of a fixed
 number of iterations, and ``loops=1-long``: one loop with as many iterations as the longest),
 on the first seed as before and now on every seed of ``budget.seeds_for``; and consensus ADMM
-(``update=admm``, otherwise ``dc_modes``' settings) on every seed, paired with ``dc_modes``'
-averaging cells of the same seeds.
+(``update=admm``, otherwise the defaults) on every seed, paired with the default averaging
+cell of the same seed.
 """
 
 from dc_lesson.algorithms.dc import preset as dc_config
@@ -13,7 +13,7 @@ from dc_lesson.experiments.studies import _common, _imitation as _im
 from dc_lesson.experiments.studies.dc_modes import dc_cell, run_dc
 
 NAME = "dc_ablation"
-TASK = "reacher4"
+TASK = _im.ABLATION_TASK
 LOOPS = (1, 2, 3, 4)
 
 
@@ -23,12 +23,13 @@ def cells_at(b):
     for s in b.seeds_for(TASK):
         for L in LOOPS:
             out.append(dc_cell(NAME, TASK, s, b, overrides={"loops": L, "iterations": per_loop},
-                               variant=f"loops={L}"))
+                               variant=f"loops={L}", n_demos=_im.ABLATION_DEMOS))
         out.append(dc_cell(NAME, TASK, s, b, overrides={"loops": 1,
                                                         "iterations": per_loop * max(LOOPS)},
-                           variant="loops=1-long"))
+                           variant="loops=1-long", n_demos=_im.ABLATION_DEMOS))
         out.append(dc_cell(NAME, TASK, s, b, overrides={"update": "admm"},
-                           variant="update=admm"))
+                           variant="update=admm", n_demos=_im.ABLATION_DEMOS))
+        out.append(dc_cell(NAME, TASK, s, b, n_demos=_im.ABLATION_DEMOS))   # averaging
     return out
 
 
@@ -37,6 +38,7 @@ def aggregate(recs, b):
     from dc_lesson.experiments import aggregate as _agg
     obs = out["observations"]
     out["paired"] = (_agg.paired(obs, f"dc-loops={max(LOOPS)}", "dc-loops=1")
+                     + _agg.paired(obs, "dc-update=admm", "dc")
                      + _agg.paired(obs, "dc-loops=1-long", f"dc-loops={max(LOOPS)}"))
     return out
 

@@ -1,5 +1,5 @@
 """DC against its learning rate, as cells (the paper's Figure 4 for DC; ``dc_lr.json``): on
-``halfcheetah``, per learning rate of ``budget.lr_sweep_lrs`` (both copies' AdamW) and seed,
+``hopper`` (11 demonstrations), per learning rate of ``budget.lr_sweep_lrs`` (both copies' AdamW) and seed,
 ``budget.lr_sweep_steps`` interactions from the seed's BC warm start (variant ``lr=...``)."""
 
 from dc_lesson.experiments import cells
@@ -11,7 +11,7 @@ NAME = "dc_lr"
 
 def cells_at(b):
     return [dc_cell(NAME, _im.LR_TASK, s, b, overrides={"lr": float(lr)},
-                    steps=b.lr_sweep_steps, variant=f"lr={lr:g}")
+                    steps=b.lr_sweep_steps, variant=f"lr={lr:g}", n_demos=_im.ABLATION_DEMOS)
             for lr in b.lr_sweep_lrs for s in b.seeds_for(_im.LR_TASK)]
 
 

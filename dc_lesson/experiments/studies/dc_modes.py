@@ -24,9 +24,11 @@ def _dc_json(b, seed, overrides) -> dict:
     return _im.without_seed(json.loads(dc_config(b, seed=seed, **overrides).to_json()))
 
 
-def dc_cell(study, task, seed, b, *, overrides=None, steps=None, variant="", **extra):
-    sized = dataclasses.replace(b, il_steps=int(steps or b.il_steps))
-    return _im.learner_cell(study, "dc", task, seed, b, _dc_json(sized, seed, overrides or {}),
+def dc_cell(study, task, seed, b, *, overrides=None, steps=None, variant="", n_demos=None,
+            **extra):
+    sized = dataclasses.replace(b, il_steps=int(steps or b.il_steps),
+                                il_demos=int(n_demos or b.il_demos))
+    return _im.learner_cell(study, "dc", task, seed, sized, _dc_json(sized, seed, overrides or {}),
                             variant=variant, steps=steps, overrides=overrides or {}, **extra)
 
 

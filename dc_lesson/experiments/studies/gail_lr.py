@@ -1,7 +1,7 @@
 """GAIL against its learning rate, as cells (the paper's Figure 4 for GAIL; ``gail_lr.json``).
 
-Cells: on ``halfcheetah``, per learning rate of ``budget.lr_sweep_lrs`` (one rate for the policy,
-its critic and the discriminator) and seed of ``budget.seeds_for("halfcheetah")``, GAIL from the
+Cells: on ``hopper`` (11 demonstrations), per learning rate of ``budget.lr_sweep_lrs`` (one rate for the policy,
+its critic and the discriminator) and seed of ``budget.seeds_for("hopper")``, GAIL from the
 seed's BC warm start for ``budget.lr_sweep_steps`` interactions (variant ``lr=...``).
 """
 
@@ -13,7 +13,7 @@ NAME = "gail_lr"
 
 
 def cells_at(b):
-    return [gail_cell(NAME, _im.LR_TASK, s, b, lr=lr, steps=b.lr_sweep_steps, variant=f"lr={lr:g}")
+    return [gail_cell(NAME, _im.LR_TASK, s, b, lr=lr, steps=b.lr_sweep_steps, variant=f"lr={lr:g}", n_demos=_im.ABLATION_DEMOS)
             for lr in b.lr_sweep_lrs for s in b.seeds_for(_im.LR_TASK)]
 
 

@@ -8,6 +8,8 @@ interactions), both evaluated against the fresh reference; and the expert row.  
 
 from __future__ import annotations
 
+import dataclasses
+
 from dc_lesson.algorithms.gail import sized as gail_config
 from dc_lesson.experiments import cells, gail as _bench
 from dc_lesson.experiments.studies import _common, _imitation as _im
@@ -15,9 +17,11 @@ from dc_lesson.experiments.studies import _common, _imitation as _im
 NAME = "gail_modes"
 
 
-def gail_cell(study, task, seed, b, *, lr=None, steps=None, variant=""):
+def gail_cell(study, task, seed, b, *, lr=None, steps=None, variant="", n_demos=None):
     cfg = _im.without_seed(gail_config(int(steps or b.il_steps), seed, lr=lr).to_dict())
     extra = {} if lr is None else {"lr": float(lr)}
+    if n_demos is not None:
+        b = dataclasses.replace(b, il_demos=int(n_demos))
     return _im.learner_cell(study, "gail", task, seed, b, cfg, variant=variant, steps=steps,
                             **extra)
 
