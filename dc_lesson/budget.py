@@ -54,6 +54,20 @@ class Budget:
     sweep_seeds_reacher: int = 10    # seeds per cell on reacher1/2/4
     sweep_seeds_other: int = 5       # seeds per cell on every other task
     sweep_command: str = "dc-lesson sweep STUDY"   # how its grids run (all cores, locally)
+    # The single-mode benchmark (Table III, Figures 9 and 11; ``dc-lesson sweep table3``):
+    # 7 learners x 7 tasks x 4 demonstration counts x these seeds.  Its interactions per run
+    # are per task ((task, steps) pairs; others take the first entry's), sized so the lesson
+    # grid fits a night on a 2-core machine.
+    table3_seeds: int = 3
+    table3_steps: tuple = (("default", 100_000),)
+    table3_eval_episodes: int = 20
+    table3_curve_points: int = 5      # Figure 11's checkpoints (fewest demonstrations only)
+    table3_curve_episodes: int = 5    # deterministic episodes per checkpoint
+
+    def table3_steps_for(self, task: str) -> int:
+        """Interactions of one RL run of the single-mode benchmark on ``task``."""
+        steps = dict(self.table3_steps)
+        return int(steps.get(task, steps.get("default", self.table3_steps[0][1])))
 
     def seeds_for(self, task: str) -> tuple[int, ...]:
         """The seeds of a cell study on ``task``."""
@@ -73,7 +87,9 @@ PRESETS: dict[str, Budget] = {
                     lr_sweep_steps=2048, softflow_toy_points=256, softflow_toy_iters=4,
                     softflow_toy_seeds=(0,), softflow_states=256, softflow_iters=4,
                     softflow_sigma_maxes=(0.0, 0.1), softflow_grid=25,
-                    sweep_seeds_reacher=2, sweep_seeds_other=1),
+                    sweep_seeds_reacher=2, sweep_seeds_other=1, table3_seeds=1,
+                    table3_steps=(("default", 4096),), table3_eval_episodes=2,
+                    table3_curve_points=2, table3_curve_episodes=1),
     "lesson": Budget("lesson", tour_episodes=10, video_steps=150, bench_steps=8000,
                      bc_demo_counts=(4, 11, 18, 25), bc_seeds=(0, 1, 2, 3, 4),
                      bc_eval_episodes=50, bc_max_epochs=200, il_demos=18,
@@ -88,6 +104,8 @@ PRESETS: dict[str, Budget] = {
                     softflow_iters=4000, softflow_task_seeds=(0, 1, 2),
                     softflow_sigma_maxes=(0.0, 0.01, 0.03, 0.1, 0.3, 1.0),
                     softflow_grid=100, sweep_seeds_reacher=10, sweep_seeds_other=10,
+                    table3_seeds=10, table3_steps=(("default", 1_000_000),),
+                    table3_eval_episodes=50, table3_curve_points=10,
                     # the paper's grid outgrows one machine: join a Ray cluster
                     # (`ray start --head` on one node, `ray start --address HEAD:6379` on the
                     # others, a shared DC_LESSON_DATA folder) and run from the head node:

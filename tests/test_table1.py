@@ -162,3 +162,20 @@ def test_only_the_rows_that_own_a_start_evaluate_it():
         row = table1.ROWS[c.row]
         owns = row.stage == 1 or row.mixture or bool(row.demos)
         assert c.config.get("evaluate_start", True) is owns, c.row
+
+
+def test_the_single_mode_grid_has_every_learner_task_count_and_seed():
+    """table3 (Table III / Figures 9, 11): the full grid, curves only at the fewest
+    demonstrations and only for RL learners, interactions per task from the budget."""
+    from dc_lesson.experiments.studies import table3
+    b = budget.get("lesson")
+    grid = [c for c in table3.cells_at(b) if c.learner != "expert"]
+    assert len(grid) == (len(table3.TASKS) * len(b.bc_demo_counts) * b.table3_seeds
+                         * len(table3.LEARNERS))
+    for c in grid:
+        cfg = c.config
+        assert cfg["curve"] == (c.n_demos == min(b.bc_demo_counts) and c.learner != "bc")
+        assert cfg["steps"] == (0 if c.learner == "bc" else b.table3_steps_for(c.task))
+    experts = [c for c in table3.cells_at(b) if c.learner == "expert"]
+    assert sorted({c.task for c in experts}) == sorted(table3.TASKS)
+    assert table3._checkpoints(100, 4) == [25, 50, 75, 100]

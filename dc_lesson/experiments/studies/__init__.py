@@ -11,6 +11,7 @@
 | ``dc_ablation`` | ``dc_ablation.json`` | DC's loop counts (one seed) and consensus ADMM (all seeds) |
 | ``dc_lr`` | ``dc_lr.json`` | DC per learning rate and seed on halfcheetah |
 | ``table1`` | ``table1.json`` | every learner and control on the multi-mode tasks, both evaluations |
+| ``table3`` | ``table3.json`` | every learner on the single-mode tasks per demonstration count |
 | ``softflow_fit`` | ``softflow_fit.json`` | SoftFlow on the circle toy and on expert states |
 """
 
@@ -21,7 +22,7 @@ import importlib
 from dc_lesson.experiments.cells import Study
 
 NAMES = ("reference", "bc_demos", "bc_drift", "gail_modes", "gail_lr", "dc_modes",
-         "dc_ablation", "dc_lr", "table1", "softflow_fit")
+         "dc_ablation", "dc_lr", "table1", "table3", "softflow_fit")
 
 
 class UnknownStudyError(ValueError):

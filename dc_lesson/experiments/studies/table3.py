@@ -1,0 +1,149 @@
+"""The paper's single-mode benchmark, as cells (chapter 06; ``table3.json``): Table III and
+Figure 9 (scaled return against demonstrations, every learner, every task) and Figure 11
+(return against interactions at the fewest demonstrations, from deterministic evaluations at
+checkpoints, not training-episode returns).
+
+Cells: per task of :data:`TASKS`, demonstration count of ``budget.bc_demo_counts`` (the
+paper's 4, 11, 18, 25; its Humanoid counts 80, 160, 240 exceed the 25 demonstrations we keep
+per task, so Humanoid gets ours and the table says so), seed of ``budget.table3_seeds`` and
+learner of :data:`LEARNERS`: BC alone (the paper's 70/30 BC), or an RL learner from the
+seed's BC warm start on the same demonstrations with ``budget.table3_steps_for(task)``
+interactions; each final policy evaluated with its mean action on
+``budget.table3_eval_episodes`` fresh episodes against the fresh expert reference; and the
+expert row.  At the fewest demonstrations an RL cell also evaluates its policy (mean action,
+``budget.table3_curve_episodes`` episodes) at ``budget.table3_curve_points`` checkpoints
+spread over its interactions: Figure 11's curve.
+
+Choices: the lesson budget trades seeds and interactions for the whole grid fitting a night on
+a 2-core machine (``dc-lesson sweep table3 --dry-run`` prints the measured estimate); the
+interactions per task are in :mod:`dc_lesson.budget` and in the chapter's table.
+"""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+import json
+import time
+
+from dc_lesson import algorithms as _algorithms
+from dc_lesson import budget as _budget
+from dc_lesson import evaluation as _evaluation
+from dc_lesson.algorithms import bc as _bc
+from dc_lesson.data import store as _store
+from dc_lesson.experiments import cells, protocol
+from dc_lesson.experiments.studies import _common, _imitation as _im
+
+NAME = "table3"
+TASKS = ("cartpole", "reacher1", "hopper", "walker", "halfcheetah", "ant", "humanoid")
+LEARNERS = ("bc", "gail", "dril", "pwil", "ndi", "gpril", "dc")
+
+
+def _sized(b, task: str):
+    return dataclasses.replace(b, il_steps=b.table3_steps_for(task))
+
+
+def learner_config(learner: str, b, task: str, seed: int):
+    algo = _algorithms.get(learner)
+    return algo.preset(b if learner == "bc" else _sized(b, task), seed)
+
+
+def cells_at(b) -> list[cells.Cell]:
+    out = []
+    for task in TASKS:
+        ref = protocol.reference_cell(task)
+        for n in b.bc_demo_counts:
+            for seed in range(b.table3_seeds):
+                for learner in LEARNERS:
+                    cfg = json.loads(learner_config(learner, b, task, seed).to_json())
+                    out.append(cells.make_cell(
+                        NAME, learner, task, n, seed,
+                        {"budget": b.name, "steps": 0 if learner == "bc"
+                         else b.table3_steps_for(task),
+                         "eval_episodes": b.table3_eval_episodes,
+                         "eval_seed": protocol.expert_eval_seed(0),
+                         "bc_max_epochs": b.bc_max_epochs,
+                         "curve": (n == min(b.bc_demo_counts) and learner != "bc"),
+                         "curve_points": b.table3_curve_points,
+                         "curve_episodes": b.table3_curve_episodes,
+                         learner: _im.without_seed(cfg)}, needs=(ref,)))
+    out.sort(key=lambda c: (c.seed, c.n_demos, TASKS.index(c.task)))   # seed-major
+    return out + _common.expert_rows(NAME, TASKS, dataclasses.replace(
+        b, sweep_seeds_other=b.table3_seeds, sweep_seeds_reacher=b.table3_seeds),
+        b.table3_eval_episodes)
+
+
+def _checkpoints(total: int, points: int) -> list[int]:
+    return [int(round(total * (i + 1) / points)) for i in range(points)]
+
+
+def run_cell(cell, needs):
+    c = cell.config
+    b = _budget.get(c["budget"])
+    cfg = learner_config(cell.learner, b, cell.task, cell.seed)
+    _im.check_config(cell, json.loads(cfg.to_json()))
+    reference = _common.reference(needs)
+    demos = _store.load_demos(cell.task, n_trajectories=cell.n_demos)
+
+    def evaluate(policy, n_episodes):
+        return _evaluation.evaluate_policy(cell.task, policy, reference,
+                                           n_episodes=n_episodes, seed=c["eval_seed"])
+
+    out = {}
+    t0 = time.perf_counter()
+    if cell.learner == "bc":
+        result = _bc.train(cell.task, demos, cfg, progress=False)
+    else:
+        start = _bc.warm_start_policy(demos, cell.seed, max_epochs=c["bc_max_epochs"])
+        curve, marks = [], _checkpoints(c["steps"], c["curve_points"]) if c["curve"] else []
+
+        def callback(row, policy):
+            steps = row.get("env_steps", row.get("steps"))
+            while marks and steps is not None and steps >= marks[0]:
+                marks.pop(0)
+                ev = evaluate(policy, c["curve_episodes"])
+                curve.append({"steps": int(steps), "scaled_return": ev["scaled_return"]})
+            return False
+
+        result = _algorithms.get(cell.learner).train(
+            cell.task, demos, cfg, policy=copy.deepcopy(start), progress=False,
+            callback=callback if c["curve"] else None)
+        if c["curve"]:
+            out["curve"] = curve
+    out["train_seconds"] = time.perf_counter() - t0
+    out["final"] = _im.protocol.measures_of(evaluate(result.policy, c["eval_episodes"]))
+    return out, None
+
+
+def aggregate(records, b) -> dict:
+    from dc_lesson.experiments import aggregate as _agg
+    obs = []
+    for r in records:
+        res = r["result"]
+        if "measures" in res:
+            obs.append(_agg.observation(r, res["measures"]))
+        else:
+            obs.append(_agg.observation(r, res["final"], curve=res.get("curve")))
+    learners = [o for o in obs if o["row"] != "expert"]
+    expert = [{**o, "n_demos": 0} for o in obs if o["row"] == "expert"]
+    paired = [p for a, bb in (("dc", "bc"), ("dc", "gail")) + tuple(
+        ("dc", x) for x in LEARNERS if x not in ("dc", "bc", "gail"))
+        for p in _agg.paired(learners, a, bb)]
+    iqm = []
+    for n in b.bc_demo_counts:
+        for row in LEARNERS:
+            x = _agg.iqm_over_tasks([o for o in learners if o["n_demos"] == n], row)
+            if x:
+                iqm.append({**x, "n_demos": n})
+    return {"table": _agg.table(learners), "expert": _agg.table(expert), "paired": paired,
+            "iqm": iqm, "steps": {t: b.table3_steps_for(t) for t in TASKS},
+            "interval": "95% bootstrap (BCa) over seeds; paired: of the per-seed differences",
+            "observations": obs}
+
+
+STUDY = cells.Study(NAME, "Table III / Figures 9 and 11: every learner on the single-mode tasks",
+                    cells=cells_at,
+                    run_cell=lambda c, n: _common.run_expert_or(c, n, run_cell),
+                    aggregate=aggregate, result_file="table3.json")
+
+__all__ = ["LEARNERS", "NAME", "STUDY", "TASKS", "cells_at", "learner_config", "run_cell"]
