@@ -179,3 +179,23 @@ def test_the_single_mode_grid_has_every_learner_task_count_and_seed():
     experts = [c for c in table3.cells_at(b) if c.learner == "expert"]
     assert sorted({c.task for c in experts}) == sorted(table3.TASKS)
     assert table3._checkpoints(100, 4) == [25, 50, 75, 100]
+
+
+def test_a_cached_start_is_the_policy_a_fresh_warm_start_gives():
+    """table1 keeps each seed's BC start per worker: the cached copy must equal a start
+    trained afresh, parameter for parameter, and cells get copies, not the cached object."""
+    from dc_lesson.data import store
+    smoke = budget.get("smoke")
+    demos = store.load_demos("reacher2", n_trajectories=4)
+    c = {"bc_max_epochs": 3}
+    table1._STARTS.clear()
+    first = table1._start("reacher2", demos, None, 1, smoke, c, False)
+    second = table1._start("reacher2", demos, None, 1, smoke, c, False)
+    fresh = bc.warm_start_policy(demos, 1, max_epochs=3)
+    for p, q, r in zip(first.parameters(), second.parameters(), fresh.parameters()):
+        assert torch.equal(p, q) and torch.equal(p, r)
+    assert first is not second
+    with torch.no_grad():
+        next(first.parameters()).add_(1.0)    # a cell training its copy leaves the cache alone
+    again = table1._start("reacher2", demos, None, 1, smoke, c, False)
+    assert torch.equal(next(again.parameters()), next(fresh.parameters()))

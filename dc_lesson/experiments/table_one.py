@@ -23,7 +23,8 @@ TASKS = ("reacher2", "reacher4", "halfcheetah2")
 # Row, what it is (the order of the chapter's table).
 ROWS = {
     "expert": "expert vs expert (the floor)",
-    "bc": "BC, 70/30 split (the paper's; every RL row's start)",
+    "bc": "BC, 70/30 split (the paper's), as every RL row's start: its log-std reset to "
+          "-0.5 for exploration, so its sampled evaluation acts with that std",
     "bc-all": "BC on all 18, early stop on other expert episodes",
     "gail": "GAIL, D(s, a)",
     "gail-state": "GAIL, state-only D(s)",

@@ -123,11 +123,12 @@ def _cell(row: Row, task: str, seed: int, b) -> cells.Cell:
 
 
 def cells_at(b) -> list[cells.Cell]:
-    """Seed-major within a stage: an interrupted stage has every row at its first seeds."""
+    """The expert row first, then seed-major within a stage: an interrupted stage has every
+    row at its first seeds."""
     rows = sorted(ROWS.values(), key=lambda r: r.stage)
     learners = [_cell(r, t, s, b) for r in rows for t in _im.TASKS for s in b.seeds_for(t)]
     learners.sort(key=lambda c: (c.stage, c.seed, _im.TASKS.index(c.task)))
-    return learners + _im.expert_rows(NAME, _im.TASKS, b)
+    return _im.expert_rows(NAME, _im.TASKS, b) + learners   # the floor first: it is cheap
 
 
 def _mixture_start(policy):
@@ -139,6 +140,26 @@ def _mixture_start(policy):
         policy.head.weight[k + k * a:].zero_()
         policy.head.bias[k + k * a:].fill_(_bc.WARM_START_LOG_STD)
     return policy
+
+
+_STARTS: dict = {}   # this worker's BC starts: (task, demos, seed, epochs, mixture) -> policy
+
+
+def _start(task, demos, variant, seed: int, b, c, mixture: bool):
+    """The seed's BC start, trained once per worker process and copied for each cell.  BC is
+    deterministic on one thread, so a cached start is the very policy a fresh one would be
+    (``tests/test_table1.py`` checks it); a sweep runs the rows of one seed one after another,
+    so the controls and baselines of a seed reuse it instead of training it again."""
+    key = (task, len(demos.trajectories), variant, seed, c["bc_max_epochs"], mixture)
+    if key not in _STARTS:
+        if mixture:
+            _STARTS[key] = _mixture_start(_bc.train(task, demos, _bc_config(b, seed, True),
+                                                    progress=False).policy)
+        else:
+            _STARTS[key] = _bc.warm_start_policy(demos, seed, max_epochs=c["bc_max_epochs"])
+        while len(_STARTS) > 8:   # a few seeds' worth, oldest out
+            _STARTS.pop(next(iter(_STARTS)))
+    return copy.deepcopy(_STARTS[key])
 
 
 def _evaluate(task, policy, reference, c, seed):
@@ -165,11 +186,7 @@ def run_cell(cell, needs):
     if row.learner == "bc":
         result = _bc.train(cell.task, demos, cfg, progress=False)
     else:
-        if row.mixture:
-            start = _mixture_start(_bc.train(cell.task, demos, _bc_config(b, cell.seed, True),
-                                             progress=False).policy)
-        else:
-            start = _bc.warm_start_policy(demos, cell.seed, max_epochs=c["bc_max_epochs"])
+        start = _start(cell.task, demos, variant, cell.seed, b, c, row.mixture)
         if c.get("evaluate_start", True):
             t_start = time.perf_counter()
             out["start"], feats["start"] = _evaluate(cell.task, start, reference, c, cell.seed)
