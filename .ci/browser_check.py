@@ -16,7 +16,8 @@ What it does, in order:
    notebook, clicks Run > Run All Cells, and waits until every cell has run and the kernel is
    idle (the Jupyter REST API's ``execution_state`` and the cells' ``[*]`` prompts);
 4. fails (exit 1, one line per problem) on any error or stderr output (the pink boxes), a
-   widget that did not render, a warning in any output, or no figure at all; and, after
+   widget that did not render, a warning in any output, a figure the kernel sent that the page
+   does not show, a cell that did not run; and, after
    File > Save, on any change of the chapter's paired ``.py`` (a reader who only ran and saved
    must not get a git diff);
 5. saves screenshots under ``outputs/`` of the repository: the whole notebook after the run
@@ -331,8 +332,6 @@ def check(notebook: pathlib.Path, out_dir: pathlib.Path, budget: str, timeout: f
                 n_images = sum(o["images"] > 0 for o in outputs)
                 n_bars = sum(o["progress"] > 0 for o in outputs)
                 n_widgets = sum(o["widget"] for o in outputs)
-                if not n_images:
-                    problems.append("no figure was shown")
                 print(f"  {ran} of {n_code} code cells ran; {len(outputs)} outputs: "
                       f"{n_images} with a figure, {n_bars} progress bars "
                       f"({n_widgets} widget outputs), "
@@ -359,6 +358,12 @@ def check(notebook: pathlib.Path, out_dir: pathlib.Path, budget: str, timeout: f
                     [{k: o[k] for k in ("cell", "mime", "images", "widget", "progress", "text")}
                      for o in outputs], indent=1))
                 problems += [f"saved notebook: {m}" for m in model_problems(saved)]
+                # Every figure the kernel sent is on the page.
+                sent = sum(any(k.startswith("image/") for k in out.get("data", {}))
+                           for c in saved["cells"] for out in c.get("outputs", []))
+                shown = sum(o["mime"].startswith("image/") and o["images"] > 0 for o in outputs)
+                if shown < sent:
+                    problems.append(f"the kernel sent {sent} figures, the page shows {shown}")
                 py = notebook.with_suffix(".py")
                 saved_py = work / "book" / py.name
                 if saved_py.read_bytes() != py.read_bytes():
