@@ -56,8 +56,8 @@ from dc_lesson.storage import read_result
 BUDGET = notebook.start(
     "the live GAIL run below is a few iterations long and its numbers mean nothing. The "
     "stored benchmarks (data/results/gail_modes.json, gail_lr.json, "
-    "gail_modes_lr1e-4.json) are read, not recomputed, so their tables and figures are the "
-    "real ones.")
+    "gail_modes_lr1e-4.json, and table1.json as far as its sweep has run) are read, not "
+    "recomputed, so their tables and figures are the real ones.")
 CHAPTER_START = time.perf_counter()
 
 # %% [markdown]
