@@ -8,7 +8,7 @@
 #       format_version: '1.3'
 #       jupytext_version: 1.19.6
 #   kernelspec:
-#     display_name: Python 3
+#     display_name: Python 3 (ipykernel)
 #     language: python
 #     name: python3
 # ---
@@ -55,8 +55,7 @@ from dc_lesson.experiments import tour
 BUDGET = notebook.start(
     "the random-policy returns below come from a few episodes per task and mean little; the "
     "experts, demonstrations, floors, learning curves and rollout speeds are read from stored "
-    "results and are real. Change the budget with DC_LESSON_BUDGET=lesson (or paper) before "
-    "starting JupyterLab.")
+    "results and are real.")
 
 # %% [markdown]
 # ## The ten ports

@@ -8,7 +8,7 @@
 #       format_version: '1.3'
 #       jupytext_version: 1.19.6
 #   kernelspec:
-#     display_name: Python 3
+#     display_name: Python 3 (ipykernel)
 #     language: python
 #     name: python3
 # ---
@@ -55,7 +55,8 @@ from dc_lesson.storage import read_result
 
 BUDGET = notebook.start(
     "the live GAIL run below is a few iterations long and its numbers mean nothing. The "
-    "stored benchmarks (data/results/gail_modes.json, gail_lr.json) are read, not "
+    "stored benchmarks (data/results/gail_modes.json, gail_lr.json, "
+    "gail_modes_lr1e-4.json, and table1.json as far as its sweep has run) are read, not "
     "recomputed, so their tables and figures are the real ones.")
 CHAPTER_START = time.perf_counter()
 

@@ -8,7 +8,7 @@
 #       format_version: '1.3'
 #       jupytext_version: 1.19.6
 #   kernelspec:
-#     display_name: Python 3
+#     display_name: Python 3 (ipykernel)
 #     language: python
 #     name: python3
 # ---
@@ -54,7 +54,10 @@ from dc_lesson.algorithms import bc, dril, gpril, ndi, pwil
 from dc_lesson.storage import read_result
 
 BUDGET = notebook.start(
-    "the live runs below are a few iterations long and their numbers mean nothing.")
+    "the live runs below are a few iterations long and their numbers mean nothing (the "
+    "checks of each learner's parts against exact answers hold at any budget). The stored "
+    "cost table (data/results/learner_cost.json) and Table I rows (table1.json, as far as "
+    "its sweep has run) are read, not recomputed, so they are the real ones.")
 CHAPTER_START = time.perf_counter()
 
 LIVE_TASK = "reacher2"
@@ -373,6 +376,7 @@ else:
         print("no baseline cell has run yet (they are stage 3 of the sweep)")
 
 # %% [markdown]
+#
 # %% [markdown]
 # ## Exercises
 #

@@ -1,6 +1,7 @@
 """The mode toy: the three objectives do to the modes what chapter 04 says they do."""
 
 import math
+import warnings
 
 import pytest
 
@@ -45,3 +46,12 @@ def test_the_target_density_is_normalised():
         toy.fit("gaussian", "wasserstein")
     late = toy.fit("gaussian", "forward_kl", steps=40).curve[-1]
     assert math.isfinite(late) and late < toy.fit("gaussian", "forward_kl", steps=1).curve[0]
+
+
+@pytest.mark.parametrize("objective", toy.OBJECTIVES)
+def test_a_fit_warns_nothing(objective):
+    """Chapter 04 prints the toy in the Lab: a warning there is a pink box (issue 19; torch
+    warned when the loss curve took float() of a tensor that requires grad)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        toy.fit("gaussian", objective, steps=21, n=64)
