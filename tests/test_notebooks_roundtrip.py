@@ -130,10 +130,7 @@ def test_a_new_notebook_is_paired_by_the_repository_configuration(server):
     assert (work / "book" / "99_new.py").read_text().rstrip().endswith("# %%\nx = 1")
 
 
-@pytest.mark.parametrize("chapter", [
-    pytest.param(c, marks=pytest.mark.xfail(reason="04's header still names 'Python 3' (the "
-                                                   "lead's file; see issue 19's note)"))
-    if c.startswith("04_") else c for c in CHAPTERS])
+@pytest.mark.parametrize("chapter", CHAPTERS)
 def test_chapters_name_the_kernel_jupyterlab_runs_them_with(chapter):
     """JupyterLab writes the running kernel's spec into the notebook when it saves; a chapter
     that names another display name gets its .py header rewritten by a reader's first save."""
