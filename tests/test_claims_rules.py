@@ -104,3 +104,16 @@ def test_the_stored_results_give_a_verdict_per_claim_in_the_three_words():
     for v in claims.verdicts():
         assert all(p[1] in claims.VERDICTS for p in v.per_task), v.claim
         assert v.verdict.split(" ")[0] in claims.VERDICTS
+
+
+def test_arriving_nowhere_is_not_collapsing_onto_a_mode():
+    """'none' (an episode that never arrives) is not a mode: a policy that goes nowhere has a
+    largest-mode share of 0, not 1, and the collapse rule does not count it."""
+    nowhere = {"mode_shares": {"red": 0.0, "blue": 0.0, "none": 1.0}}
+    one = {"mode_shares": {"red": 0.9, "blue": 0.05, "none": 0.05}}
+    assert claims.largest_share(nowhere) == 0.0 and claims.largest_share(one) == 0.9
+    from dc_lesson.experiments.studies import _imitation
+    obs = [{"row": "gail", "task": "t", "n_demos": 18, "seed": s, **m}
+           for s, m in enumerate((nowhere, one))]
+    (summary,) = _imitation.mode_summary(obs, {"t": {"red": 0.5, "blue": 0.5, "none": 0.0}}, 50)
+    assert summary["largest_share"] == [0.0, 0.9] and summary["collapsed_share"] == 0.5

@@ -165,7 +165,10 @@ CONVERGES = Claim(
 # -- derived per-seed measures --------------------------------------------------------------------
 
 def largest_share(o) -> float | None:
-    return max(o["mode_shares"].values()) if o.get("mode_shares") else None
+    """The share of episodes in the seed's largest *mode*: "none" (arrived nowhere) is not a
+    mode, so a policy that goes nowhere has not collapsed onto one."""
+    shares = {k: v for k, v in (o.get("mode_shares") or {}).items() if k != "none"}
+    return max(shares.values()) if shares else None
 
 
 def mode_tv(reference_shares: dict):

@@ -84,7 +84,8 @@ def observations(records, start_row: str = "bc") -> list[dict]:
 
 
 def mode_summary(obs: list[dict], reference_shares: dict, eval_episodes: int) -> list[dict]:
-    """Per (row, task): per seed the largest mode's share and the TV distance of the seed's
+    """Per (row, task): per seed the largest mode's share (episodes that arrive nowhere are no
+    mode) and the TV distance of the seed's
     mode shares from the reference's; the share of seeds collapsed (largest share at least
     COLLAPSE_SHARE); and the multinomial floor of TV for ``eval_episodes`` episodes."""
     out = []
@@ -94,7 +95,7 @@ def mode_summary(obs: list[dict], reference_shares: dict, eval_episodes: int) ->
         ref = reference_shares.get(task)
         if not shares or not ref:
             continue
-        top = [max(s.values()) for s in shares]
+        top = [max(v for k, v in s.items() if k != "none") for s in shares]   # "none": no mode
         tvs = [stats.tv(ref, s) for s in shares]
         floor = stats.multinomial_tv_floor(ref, eval_episodes)
         out.append({"row": row, "task": task, "n_seeds": len(shares),
