@@ -55,11 +55,18 @@ def run(task: str = "reacher4", seed: int = 0, budget: _budget.Budget | None = N
                                         policy=copy.deepcopy(start), progress=progress).policy
             seconds[name] = time.perf_counter() - t0
             stages.update(1)
+        # The expert row: the expert scored the same way, from the same initial states as the
+        # learners (the floor below which a learner's divergence means nothing).
+        from dc_lesson.experts import load_expert
+        policies = {"expert": load_expert(task)[0], **policies}
+        seconds["expert"] = 0.0
         for name, policy in policies.items():
             ev = _evaluation.evaluate_policy(task, policy, reference,
                                              n_episodes=budget.il_eval_episodes,
                                              keep_features=True)
-            features[name] = ev.pop("features")
+            feats = ev.pop("features")
+            if name != "expert":       # the map's "expert" panel is the demonstrations
+                features[name] = feats
             results[name] = {**ev, "train_seconds": seconds[name]}
     finally:
         stages.close()
@@ -67,17 +74,29 @@ def run(task: str = "reacher4", seed: int = 0, budget: _budget.Budget | None = N
 
     path = pathlib.Path(out) / "headline_coverage.png"
     n_targets = len(spec.modes) if task.startswith("reacher") else None
+    title = (f"{task}: where each policy goes (seed {seed}, budget {budget.name}, "
+             f"{budget.il_demos} demonstrations, {budget.il_steps:,} interactions)")
+    caption = ("'expert': the demonstrations; BC, GAIL and DC: "
+               f"{budget.il_eval_episodes} fresh episodes each, mean action. One seed: an "
+               "illustration, not a verdict (chapter 04 has the paired intervals).")
     if n_targets:
-        _plots.coverage_reacher(features, n_targets, path=path)
+        fig = _plots.coverage_reacher(features, n_targets)
     else:
-        _plots.coverage_velocity(features, path=path)
-    print(format_table(task, budget, results))
+        fig = _plots.coverage_velocity(features)
+    fig.suptitle(title, fontsize=10, y=1.04)
+    fig.text(0.5, -0.04, caption, ha="center", va="top", fontsize=8, wrap=True)
+    _plots._save(fig, path)
+    import matplotlib.pyplot as plt
+    plt.close(fig)
+    print(format_table(task, budget, results, seed))
     print(f"saved {path}")
     return results
 
 
-def format_table(task: str, budget: _budget.Budget, results: dict) -> str:
-    lines = [f"{task}, seed 0, {budget.il_demos} demonstrations, {budget.il_steps:,} "
+def format_table(task: str, budget: _budget.Budget, results: dict, seed: int = 0) -> str:
+    """The headline's table: one row per policy (the expert's first: the floor), then what
+    the columns mean."""
+    lines = [f"{task}, seed {seed}, {budget.il_demos} demonstrations, {budget.il_steps:,} "
              f"interactions for GAIL and DC, {budget.il_eval_episodes} evaluation episodes "
              f"(budget {budget.name}):",
              f"{'method':<8}{'EMD':>8}{'KL':>9}{'RKL':>9}{'scaled return':>15}"
@@ -86,6 +105,9 @@ def format_table(task: str, budget: _budget.Budget, results: dict) -> str:
         modes = ", ".join(f"{k} {v:.2f}" for k, v in (r["mode_shares"] or {}).items())
         lines.append(f"{name:<8}{r['emd']:>8.3f}{r['kl']:>9.2f}{r['rkl']:>9.2f}"
                      f"{r['scaled_return']:>15.3f}{r['train_seconds']:>9.0f}  {modes}")
+    lines.append("EMD, KL, RKL: to the demonstrations' states, lower is better (the expert row is "
+                 "the floor); scaled return: 0 random, 1 expert; modes: shares of episodes by "
+                 "the target they arrive at and stay at ('none': nowhere).")
     return "\n".join(lines)
 
 
