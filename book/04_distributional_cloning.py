@@ -446,6 +446,18 @@ if t1 is not None:
                                    "evidence": v.evidence} for v in vs]).set_index("claim"))
 
 # %% [markdown]
+# The same comparisons in words, task by task (lower EMD and lower mode TV are better; a
+# difference is *higher* or *lower* only when its paired 95% interval excludes zero over at
+# least 5 seeds):
+
+# %%
+if t1 is not None:
+    for actions in ("mean", "sampled"):
+        lines = table_one.summary_lines(t1, actions)
+        if lines:
+            display(Markdown(f"**{actions} action**\n\n" + "\n".join(f"* {x}" for x in lines)))
+
+# %% [markdown]
 # The controls have no predicted sign: each says *higher*, *lower* or *no difference
 # detected* from its paired interval (`table_one.word`), on the measure named.
 

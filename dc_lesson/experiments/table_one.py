@@ -195,6 +195,33 @@ def features(rec: dict, task: str, row: str, which: str = "final") -> "np.ndarra
     return np.concatenate(parts) if parts else None
 
 
+def summary_lines(rec: dict, actions: str = "mean") -> list[str]:
+    """One rendered Markdown line per task: DC against its BC start and against GAIL (EMD,
+    paired), the mode TV of DC and of its start, and how many seeds of each collapsed; every
+    number read from the aggregate, every word from the rules."""
+    modes = {(m["task"], m["row"]): m for m in rec[actions]["modes"]}
+    out = []
+    for task in TASKS:
+        e_bc, e_gail = paired(rec, "dc", "bc", task, actions), paired(rec, "dc", "gail", task,
+                                                                         actions)
+        if not e_bc or "emd" not in e_bc:
+            continue
+        m_dc, m_bc = modes.get((task, "dc")), modes.get((task, "bc"))
+        bits = [f"`{task}` ({e_bc['n_seeds']} paired seeds): DC's EMD minus its start's "
+                f"{fmt_entry(e_bc, 'emd', 3)}, *{word(e_bc, 'emd')}*"]
+        if e_gail and "emd" in e_gail:
+            bits.append(f"minus GAIL's {fmt_entry(e_gail, 'emd', 3)}, *{word(e_gail, 'emd')}*")
+        if m_dc and m_bc:
+            bits.append(f"mode TV from the expert's shares {fmt(m_dc['tv_ci']['mean'], m_dc['tv_ci']['lo'], m_dc['tv_ci']['hi'], 2)} "
+                        f"against the start's {fmt(m_bc['tv_ci']['mean'], m_bc['tv_ci']['lo'], m_bc['tv_ci']['hi'], 2)} "
+                        f"(multinomial floor {m_dc['tv_floor']['mean']:.2f}); collapsed seeds: "
+                        f"DC {round(m_dc['collapsed_share'] * m_dc['n_seeds'])} of "
+                        f"{m_dc['n_seeds']}, start {round(m_bc['collapsed_share'] * m_bc['n_seeds'])}"
+                        f" of {m_bc['n_seeds']}")
+        out.append("; ".join(bits) + ".")
+    return out
+
+
 def curves(rec: dict, task: str, row: str) -> list[dict]:
     """``{"seed", "steps", "episode_return", "param_change_l1", "iterations"}`` per seed of
     ``row`` on ``task`` that has run: its training log's curves (interactions on ``steps``)."""
@@ -229,5 +256,5 @@ def finite(x) -> bool:
 
 
 __all__ = ["CONTROLS", "PAPER_TABLE_I", "RESULT", "ROWS", "TASKS", "beside_paper", "controls",
-           "costs", "curves", "features",
+           "costs", "curves", "features", "summary_lines",
            "load", "paired", "rank_agreement", "status", "table", "word"]
