@@ -177,6 +177,11 @@ choices = pd.DataFrame([
      "the paper settles on one loop of 1,000 iterations; Figure 3's ablation is below"),
     ("P_ω", "SoftFlow 64-64-64, σ_max 0.1, rk4 training, 300 + 100 steps",
      "chapter 3's flow; fixed-step rk4 is several times cheaper than dopri5"),
+    ("a control: what the density adds", "reward='gail' (a state-only discriminator)",
+     "beyond the paper: Algorithm 2 unchanged, GAIL's -log(1 - D(s')) in place of "
+     "log P_ω(s'); Table I's dc-gailreward row"),
+    ("how a policy is evaluated", "both: mean action and sampled actions",
+     "Eq. 2 is about the stochastic policy; mode shares can differ between the two"),
 ], columns=["open question", "our default", "why"]).set_index("open question")
 with pd.option_context("display.max_colwidth", 120):
     display(choices)
