@@ -223,3 +223,13 @@ def test_the_summary_words_come_from_the_rule_on_the_aggregate(monkeypatch):
         agg = table1.aggregate(recs(delta), LESSON)
         (line,) = table_one.summary_lines(agg)
         assert "`reacher2` (10 paired seeds)" in line and want in line.split(";")[0]
+
+
+def test_the_headline_table_names_its_seed_and_puts_the_expert_floor_first():
+    from dc_lesson.experiments import headline
+    r = {"emd": 0.1, "kl": 1.0, "rkl": 2.0, "scaled_return": 0.5, "train_seconds": 1.0,
+         "mode_shares": {"red": 0.5, "none": 0.5}}
+    text = headline.format_table("reacher4", budget.get("smoke"), {"expert": r, "BC": r}, seed=7)
+    lines = text.splitlines()
+    assert "seed 7" in lines[0] and lines[2].startswith("expert") and lines[3].startswith("BC")
+    assert "lower is better" in lines[-1] and "'none'" in lines[-1]
