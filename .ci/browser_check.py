@@ -404,7 +404,9 @@ def main(argv=None) -> int:
     print(f"browser check: {nb} in JupyterLab, chromium at {CHROMIUM}, budget {args.budget}")
     try:
         problems = check(nb, pathlib.Path(args.out), args.budget, args.timeout, args.headed)
-    except CheckError as e:
+    except Exception as e:   # CheckError, or Playwright's timeout before any cell ran
+        if not isinstance(e, CheckError) and type(e).__name__ != "TimeoutError":
+            raise
         print(f"browser check could not run: {e} ({time.monotonic() - t0:.0f} s)",
               file=sys.stderr)
         return 2
