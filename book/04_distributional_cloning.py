@@ -197,8 +197,11 @@ with pd.option_context("display.max_colwidth", 120):
 # %%
 LIVE_TASK = "reacher4"
 config = dc.preset(BUDGET, seed=0)
+policy_steps = config.loops * config.iterations * config.batch_size
 print(f"{BUDGET.il_demos} demonstrations; {config.loops} loops x {config.iterations} "
-      f"iterations x {config.batch_size} steps = {config.env_steps(LIVE_TASK):,} interactions")
+      f"iterations x {config.batch_size} steps = {policy_steps:,} policy steps, plus "
+      f"{config.env_steps(LIVE_TASK) - policy_steps:,} in the refit's learner episodes: "
+      f"{config.env_steps(LIVE_TASK):,} interactions")
 t0 = time.perf_counter()
 start, demos, _ = bc.warm_start(LIVE_TASK, BUDGET.il_demos, seed=0,
                                 max_epochs=BUDGET.bc_max_epochs)

@@ -1,7 +1,8 @@
 """One switch scales every experiment: ``DC_LESSON_BUDGET`` = ``smoke`` | ``lesson`` | ``paper``.
 
-* ``smoke``: CI executes the whole book with it; every notebook in well under a minute, and the
-  numbers it prints are meaningless (each chapter says so when it runs at ``smoke``).
+* ``smoke``: CI executes the whole book with it; every notebook in a minute or two on a 2-core
+  CPU (chapter 00, which renders every task, is the slowest), and the numbers its live runs
+  print are meaningless (each chapter says so when it runs at ``smoke``).
 * ``lesson`` (the default): a real result on a 2-core laptop CPU in minutes.
 * ``paper``: the paper's sizes (25 demonstrations, many iterations, several seeds); hours, for
   background runs.
