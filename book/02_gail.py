@@ -333,10 +333,13 @@ for r in modes["runs"]:
     for method in bench_gail.METHODS:
         share_rows.append({"task": r["task"], "seed": r["seed"], "approach": method,
                            **{k: round(v, 2) for k, v in r[method]["mode_shares"].items()}})
-shares = pd.DataFrame(share_rows).set_index(["task", "approach", "seed"]).sort_index()
-expert_shares = {t: modes["task_info"][t]["demo_mode_shares"] for t in modes["tasks"]}
-print("the 25 demonstrations' shares:", expert_shares)
-shares
+shares = pd.DataFrame(share_rows)
+for task in modes["tasks"]:   # one table per task: each has its own modes
+    demo = modes["task_info"][task]["demo_mode_shares"]
+    print(f"{task}: the 25 demonstrations' shares: "
+          + ", ".join(f"{k} {v:.2f}" for k, v in demo.items()))
+    display(shares[shares["task"] == task].dropna(axis=1, how="all")
+            .set_index(["approach", "seed"]).drop(columns="task").sort_index())
 
 # %% [markdown]
 # ### Mode coverage (the paper's Figures 1, 10 and 7)

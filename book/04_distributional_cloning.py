@@ -215,16 +215,19 @@ print(f"BC warm start {bc_seconds:.0f} s, DC {dc_seconds:.0f} s")
 # %%
 its = [r for r in log if r["kind"] == "iteration"]
 flows = [r for r in log if r["kind"] == "flow"]
-steps = np.array([r["env_steps"] for r in its])
 fig, axes = plt.subplots(1, 3, figsize=(13, 3.3))
-axes[0].plot(steps, [r["reward_mean"] for r in its])
+for loop in sorted({r["loop"] for r in its}):   # one line per loop: no line across a refit
+    rows = [r for r in its if r["loop"] == loop]
+    steps = [r["env_steps"] for r in rows]
+    first = loop == its[0]["loop"]
+    axes[0].plot(steps, [r["reward_mean"] for r in rows], color="tab:blue")
+    axes[1].plot(steps, [r["bc_nll"] for r in rows], color="tab:orange")
+    axes[2].plot(steps, [r["param_change_l1"] for r in rows], color="tab:green",
+                 label="‖Δθ‖₁ of π per iteration" if first else None)
+    axes[2].plot(steps, [r["pi_pi_prime_l1"] for r in rows], color="tab:red", alpha=0.6,
+                 label="‖θ_π - θ_π'‖₁ before averaging" if first else None)
 axes[0].set_ylabel("mean reward (scaled log P_ω)")
-axes[1].plot(steps, [r["bc_nll"] for r in its], color="tab:orange")
 axes[1].set_ylabel("BC NLL on the step's pairs")
-axes[2].plot(steps, [r["param_change_l1"] for r in its], color="tab:green",
-             label="‖Δθ‖₁ of π per iteration")
-axes[2].plot(steps, [r["pi_pi_prime_l1"] for r in its], color="tab:red", alpha=0.6,
-             label="‖θ_π - θ_π'‖₁ before averaging")
 axes[2].legend(frameon=False, fontsize=8)
 for ax in axes:
     ax.set_xlabel("environment steps")
