@@ -354,7 +354,7 @@ for task, k in (("reacher4", 4), ("reacher2", 2)):
               **{f"{m} (3 seeds)": bench_gail.pooled_features(features, task, m)
                  for m in bench_gail.METHODS}}
     plots.coverage_reacher(pooled, k)
-    plt.suptitle(f"{task}: mode coverage", y=1.02)
+    plt.suptitle(f"{task}: mode coverage", y=1.07)
     plt.show()
     per_seed = {f"GAIL seed {s}": features[bench_gail.feature_key(task, "GAIL", s)]
                 for s in modes["seeds"]}

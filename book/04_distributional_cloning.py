@@ -430,7 +430,7 @@ if t1 is not None:
             continue
         if k:
             plots.coverage_reacher(feats, k)
-            plt.suptitle(f"{task}: mode coverage, seeds pooled (realizable expert)", y=1.02)
+            plt.suptitle(f"{task}: mode coverage, seeds pooled (realizable expert)", y=1.07)
         else:
             plots.coverage_velocity(feats, title="halfcheetah2: forward velocity, seeds "
                                                  "pooled (realizable expert)")
