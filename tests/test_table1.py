@@ -27,7 +27,7 @@ def test_every_row_is_listed_for_every_task_and_seed_with_the_core_first():
     stages = [c.stage for c in learners]
     assert stages == sorted(stages), "a sweep runs stage by stage: the list is in stage order"
     first = [c for c in learners if c.stage == 1]
-    assert {c.row for c in first} == {"bc-all", "gail", "dc"}
+    assert {c.row for c in first} == {"bc-all", "bc-full", "gail", "dc"}
     # seed-major inside a stage: every row of seed 0 comes before any row of seed 1
     assert max(i for i, c in enumerate(first) if c.seed == 0) < \
         min(i for i, c in enumerate(first) if c.seed == 1)
@@ -46,6 +46,11 @@ def test_each_control_changes_exactly_what_its_name_says():
     assert {k for k in cfg["gail"] if cfg["gail"][k] != cfg["gail-state"][k]} == \
         {"disc_actions"}
     assert cfg["bc-all"]["stop_on_others"] and cfg["bc-all"]["val_fraction"] == 0
+    # bc-full: the same data, no early stopping, smaller minibatches; nothing else differs
+    assert {k for k in cfg["bc-all"] if cfg["bc-all"][k] != cfg["bc-full"][k]} == \
+        {"stop_on_others", "batch_size"}
+    assert not cfg["bc-full"]["stop_on_others"] and cfg["bc-full"]["val_fraction"] == 0
+    assert {k for k in cfg["bc-full"] if cfg["bc-full"][k] != cfg["bc-mix"][k]} == {"policy"}
     assert cfg["bc-mix"]["policy"] == "mixture" and cfg["bc-all"]["policy"] == "gaussian"
     # the coin rows read other demonstrations, so their cells' configs (and hashes) differ
     c = {r: next(x for x in table1.cells_at(LESSON) if x.row == r and x.task == "reacher4"

@@ -26,6 +26,7 @@ ROWS = {
     "bc": "BC, 70/30 split (the paper's), as every RL row's start: its log-std reset to "
           "-0.5 for exploration, so its sampled evaluation acts with that std",
     "bc-all": "BC on all 18, early stop on other expert episodes",
+    "bc-full": "BC on all 18, trained to a fixed budget (no early stop): the strong BC",
     "gail": "GAIL, D(s, a)",
     "gail-state": "GAIL, state-only D(s)",
     "dc": "DC (scaled log P reward)",
@@ -59,12 +60,14 @@ PAPER_TABLE_I = {
 # The controls: (a, b, measure, the question it answers).
 CONTROLS = (
     ("bc-all", "bc", "scaled_return", "does BC trained on all 18 demonstrations beat the 70/30 BC?"),
+    ("bc-full", "bc-all", "scaled_return", "does training BC to a fixed budget beat early stopping?"),
+    ("dc", "bc-full", "emd", "does DC beat the strong BC?"),
     ("dc", "dc-noppo", "emd", "what does DC's PPO step on log P add to BC continuation?"),
     ("dc", "dc-raw", "emd", "does our scaled reward differ from the paper's raw log P?"),
     ("dc", "dc-gailreward", "emd", "does the SoftFlow density beat a discriminator in Alg. 2?"),
     ("gail", "gail-state", "emd", "does a state-only discriminator change GAIL?"),
     ("dc-mix", "dc", "emd", "does the mixture policy help DC?"),
-    ("bc-mix", "bc-all", "emd", "does the mixture policy help BC?"),
+    ("bc-mix", "bc-full", "emd", "does the mixture policy help BC?"),
 )
 
 
