@@ -391,8 +391,10 @@ display(pd.DataFrame(rows).fillna(""))
 # evaluated with its mean action and with sampled actions. Rows of one seed share their BC
 # start, so every comparison below is *paired by seed*, with a 95% bootstrap interval of the
 # per-seed differences. The controls isolate what each part of DC does: BC trained on all 18
-# demonstrations (what the RL rows see; early stopping on the task's 7 other expert
-# episodes), DC without its PPO step, DC with the paper's raw reward, Algorithm 2 with GAIL's
+# demonstrations (what the RL rows see), once with early stopping on the task's 7 other
+# expert episodes (`bc-all`) and once trained to a fixed budget with no early stopping
+# (`bc-full`: held-out early stopping stopped BC too early for control, so this is the strong
+# BC no learner should lose to), DC without its PPO step, DC with the paper's raw reward, Algorithm 2 with GAIL's
 # discriminator reward in place of $\log P_\omega$, and GAIL with a state-only discriminator
 # (which the learner's action noise cannot give away). The `expert` row is the expert scored
 # like a learner on disjoint episodes: the floor below which differences mean nothing.
