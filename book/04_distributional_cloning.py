@@ -393,8 +393,8 @@ display(pd.DataFrame(rows).fillna(""))
 # per-seed differences. The controls isolate what each part of DC does: BC trained on all 18
 # demonstrations (what the RL rows see), once with early stopping on the task's 7 other
 # expert episodes (`bc-all`) and once trained to a fixed budget with no early stopping
-# (`bc-full`: held-out early stopping stopped BC too early for control, so this is the strong
-# BC no learner should lose to), DC without its PPO step, DC with the paper's raw reward, Algorithm 2 with GAIL's
+# (`bc-full`, as the imitation library trains BC; whether held-out early stopping costs BC
+# anything is the `bc-full - bc-all` control below), DC without its PPO step, DC with the paper's raw reward, Algorithm 2 with GAIL's
 # discriminator reward in place of $\log P_\omega$, and GAIL with a state-only discriminator
 # (which the learner's action noise cannot give away). The `expert` row is the expert scored
 # like a learner on disjoint episodes: the floor below which differences mean nothing.

@@ -26,7 +26,7 @@ ROWS = {
     "bc": "BC, 70/30 split (the paper's), as every RL row's start: its log-std reset to "
           "-0.5 for exploration, so its sampled evaluation acts with that std",
     "bc-all": "BC on all 18, early stop on other expert episodes",
-    "bc-full": "BC on all 18, trained to a fixed budget (no early stop): the strong BC",
+    "bc-full": "BC on all 18, trained to a fixed budget (no early stop)",
     "gail": "GAIL, D(s, a)",
     "gail-state": "GAIL, state-only D(s)",
     "dc": "DC (scaled log P reward)",

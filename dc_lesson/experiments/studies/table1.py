@@ -18,9 +18,8 @@ row                     stage  what it is
 ``bc-all``              1      BC on all 18 demonstrations, early stopping on the task's 7
                                other expert episodes (what the RL rows see, no less)
 ``bc-full``             1      BC on all 18 trained to a fixed budget (200 epochs of 64
-                               pairs, the last kept): held-out early stopping stopped BC
-                               too early for control (reacher4: 0.67 against 0.89 and the
-                               imitation library's 0.96), so this is the strong BC
+                               pairs, the last kept), as the imitation library trains it:
+                               on 3 reacher4 seeds it beat bc-all; the row tests that
 ``gail``, ``dc``        1      GAIL (D(s, a)) and DC (``reward="scaled"``) from the start
 ``dc-noppo``            2      DC with its PPO step off: BC continuation, same optimiser steps
 ``dc-raw``              2      DC with the paper's raw reward log P_w(s')
