@@ -11,8 +11,6 @@ detected`` when it includes zero, and ``too few seeds`` otherwise.
 
 from __future__ import annotations
 
-import math
-
 from dc_lesson.experiments import claims
 from dc_lesson.experiments.report import fmt, fmt_entry
 from dc_lesson.storage import read_result
@@ -252,10 +250,6 @@ def costs(rec: dict) -> list[dict]:
             walls.setdefault((c.task, c.row), []).append(w)
     return [{"task": t, "row": r, "minutes": sum(w) / len(w) / 60, "cells": len(w)}
             for (t, r), w in walls.items()]
-
-
-def finite(x) -> bool:
-    return x is not None and math.isfinite(x)
 
 
 __all__ = ["CONTROLS", "PAPER_TABLE_I", "RESULT", "ROWS", "TASKS", "beside_paper", "controls",

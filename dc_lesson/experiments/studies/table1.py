@@ -94,7 +94,6 @@ ROWS = {r.name: r for r in (
     Row("bc", "mix-coin", 4, demos="coin", mixture=True),
     Row("dc", "mix-coin", 4, demos="coin", mixture=True),
 )}
-CORE = ("bc", "bc-all", "gail", "dc")
 
 
 FULL_BATCH = 64   # bc-full's minibatch: 200 epochs of 64 pairs, about 56,000 steps on 18 demos
