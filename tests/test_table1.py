@@ -27,7 +27,7 @@ def test_every_row_is_listed_for_every_task_and_seed_with_the_core_first():
     stages = [c.stage for c in learners]
     assert stages == sorted(stages), "a sweep runs stage by stage: the list is in stage order"
     first = [c for c in learners if c.stage == 1]
-    assert {c.row for c in first} == {"bc-all", "bc-full", "gail", "dc"}
+    assert {c.row for c in first} == {"bc-all", "bc-full", "bc-lib", "gail", "dc"}
     # seed-major inside a stage: every row of seed 0 comes before any row of seed 1
     assert max(i for i, c in enumerate(first) if c.seed == 0) < \
         min(i for i, c in enumerate(first) if c.seed == 1)
@@ -51,6 +51,12 @@ def test_each_control_changes_exactly_what_its_name_says():
         {"stop_on_others", "batch_size"}
     assert not cfg["bc-full"]["stop_on_others"] and cfg["bc-full"]["val_fraction"] == 0
     assert {k for k in cfg["bc-full"] if cfg["bc-full"][k] != cfg["bc-mix"][k]} == {"policy"}
+    # bc-lib: imitation 1.0.1's recipe, 50,000 minibatches of 32 on 18,000 pairs
+    lib = cfg["bc-lib"]
+    assert (lib["hidden"], lib["norm_obs"], lib["batch_size"], lib["log_std_init"]) == \
+        ([32, 32], False, 32, 0.0)
+    assert abs(lib["epochs"] * -(-18_000 // 32) - 50_000) < 18_000 // 32
+    assert not lib["stop_on_others"] and lib["val_fraction"] == 0
     assert cfg["bc-mix"]["policy"] == "mixture" and cfg["bc-all"]["policy"] == "gaussian"
     # the coin rows read other demonstrations, so their cells' configs (and hashes) differ
     c = {r: next(x for x in table1.cells_at(LESSON) if x.row == r and x.task == "reacher4"

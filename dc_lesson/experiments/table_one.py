@@ -25,6 +25,7 @@ ROWS = {
           "-0.5 for exploration, so its sampled evaluation acts with that std",
     "bc-all": "BC on all 18, early stop on other expert episodes",
     "bc-full": "BC on all 18, trained to a fixed budget (no early stop)",
+    "bc-lib": "BC on all 18 as imitation 1.0.1 trains it (32-32, no normaliser, 50k x 32)",
     "gail": "GAIL, D(s, a)",
     "gail-state": "GAIL, state-only D(s)",
     "dc": "DC (scaled log P reward)",
@@ -59,7 +60,9 @@ PAPER_TABLE_I = {
 CONTROLS = (
     ("bc-all", "bc", "scaled_return", "does BC trained on all 18 demonstrations beat the 70/30 BC?"),
     ("bc-full", "bc-all", "scaled_return", "does training BC to a fixed budget beat early stopping?"),
-    ("dc", "bc-full", "emd", "does DC beat the strong BC?"),
+    ("bc-lib", "bc-full", "scaled_return", "does the standard library's recipe beat ours?"),
+    ("dc", "bc-lib", "emd", "does DC beat the standard library's BC?"),
+    ("gail", "bc-lib", "scaled_return", "does GAIL beat the standard library's BC?"),
     ("dc", "dc-noppo", "emd", "what does DC's PPO step on log P add to BC continuation?"),
     ("dc", "dc-raw", "emd", "does our scaled reward differ from the paper's raw log P?"),
     ("dc", "dc-gailreward", "emd", "does the SoftFlow density beat a discriminator in Alg. 2?"),
