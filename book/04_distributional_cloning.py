@@ -392,9 +392,12 @@ display(pd.DataFrame(rows).fillna(""))
 # start, so every comparison below is *paired by seed*, with a 95% bootstrap interval of the
 # per-seed differences. The controls isolate what each part of DC does: BC trained on all 18
 # demonstrations (what the RL rows see), once with early stopping on the task's 7 other
-# expert episodes (`bc-all`) and once trained to a fixed budget with no early stopping
-# (`bc-full`, as the imitation library trains BC; whether held-out early stopping costs BC
-# anything is the `bc-full - bc-all` control below), DC without its PPO step, DC with the paper's raw reward, Algorithm 2 with GAIL's
+# expert episodes (`bc-all`), once trained to a fixed budget with no early stopping
+# (`bc-full`; whether held-out early stopping costs BC anything is the `bc-full - bc-all`
+# control below), and once exactly as the standard library trains it (`bc-lib`: imitation
+# 1.0.1's 32-32 network without an observation normaliser, 50,000 minibatches of 32, so
+# that no learner wins against a BC weaker than a user would get off the shelf), DC without
+# its PPO step, DC with the paper's raw reward, Algorithm 2 with GAIL's
 # discriminator reward in place of $\log P_\omega$, and GAIL with a state-only discriminator
 # (which the learner's action noise cannot give away). The `expert` row is the expert scored
 # like a learner on disjoint episodes: the floor below which differences mean nothing.

@@ -2,6 +2,7 @@
 GAIL beats a random policy on cartpole (permutation test), determinism, exact resume from a
 checkpoint, the frozen normaliser, clear errors, and the benchmark's small pieces."""
 
+import copy
 import dataclasses
 import math
 import time
@@ -173,6 +174,26 @@ def test_the_warm_start_normaliser_stays_frozen(demos1):
         assert torch.equal(after[k], before[k]), k
     # The weights did move: the policy was trained, its inputs' scale was not changed.
     assert not torch.equal(after["mean_net.0.weight"], before["mean_net.0.weight"])
+
+
+def test_a_given_start_explores_with_start_log_std(demos1):
+    from dc_lesson.algorithms import bc
+    start, demos, _ = bc.warm_start("reacher1", 3, seed=0, max_epochs=2)
+    assert torch.allclose(start.log_std, torch.tensor(bc.WARM_START_LOG_STD))
+    seen = {}
+    for value in (-2.0, None):
+        stds = []
+        gail.train("reacher1", demos, _tiny(start_log_std=value), policy=copy.deepcopy(start),
+                   progress=False, callback=lambda row, pi: stds.append(pi.log_std.clone())
+                   or True)   # stop after iteration 0, the value warm-up (policy frozen)
+        seen[value] = stds[0]
+    assert torch.equal(seen[-2.0], torch.full_like(seen[-2.0], -2.0))
+    assert torch.equal(seen[None], start.log_std.detach())
+    # a fresh policy keeps PPO's initial log-std: the knob is about a warm start's noise
+    fresh = []
+    gail.train("reacher1", demos, _tiny(), progress=False,
+               callback=lambda row, pi: fresh.append(pi.log_std.clone()) or True)
+    assert torch.allclose(fresh[0], torch.tensor(ppo.PPOConfig().log_std_init))
 
 
 def test_clear_errors_for_bad_configurations(demos1):

@@ -23,7 +23,9 @@ row                     stage  what it is
 ``bc-lib``              1      BC on all 18 as imitation 1.0.1 trains it (the standard-library
                                baseline): a 32-32 tanh MLP, no observation normaliser, 50,000
                                minibatches of 32 (89 epochs of 18,000 pairs), the last kept
-``gail``, ``dc``        1      GAIL (D(s, a)) and DC (``reward="scaled"``) from the start
+``gail``, ``dc``        1      GAIL (D(s, a); its start's log-std set to -2, the one knob
+                               tuned, ``gail.GAILConfig.start_log_std``) and DC
+                               (``reward="scaled"``) from the start
 ``dc-noppo``            2      DC with its PPO step off: BC continuation, same optimiser steps
 ``dc-raw``              2      DC with the paper's raw reward log P_w(s')
 ``dc-gailreward``       2      Algorithm 2 with GAIL's -log(1 - D(s')) in place of log P_w
