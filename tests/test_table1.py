@@ -45,6 +45,8 @@ def test_each_control_changes_exactly_what_its_name_says():
         assert diff == {field} and cfg[row][field] == value, row
     assert {k for k in cfg["gail"] if cfg["gail"][k] != cfg["gail-state"][k]} == \
         {"disc_actions"}
+    assert {k for k in cfg["gail"] if cfg["gail"][k] != cfg["gail-noisy"][k]} == \
+        {"start_log_std"} and cfg["gail-noisy"]["start_log_std"] == -0.5
     assert cfg["bc-all"]["stop_on_others"] and cfg["bc-all"]["val_fraction"] == 0
     # bc-full: the same data, no early stopping, smaller minibatches; nothing else differs
     assert {k for k in cfg["bc-all"] if cfg["bc-all"][k] != cfg["bc-full"][k]} == \

@@ -28,6 +28,7 @@ ROWS = {
     "bc-lib": "BC on all 18 as imitation 1.0.1 trains it (32-32, no normaliser, 50k x 32)",
     "gail": "GAIL, D(s, a)",
     "gail-state": "GAIL, state-only D(s)",
+    "gail-noisy": "GAIL exploring with the warm start's log-std -0.5 (untuned)",
     "dc": "DC (scaled log P reward)",
     "dc-raw": "DC, the paper's raw log P reward",
     "dc-noppo": "DC without its PPO step (BC continuation)",
@@ -67,6 +68,7 @@ CONTROLS = (
     ("dc", "dc-raw", "emd", "does our scaled reward differ from the paper's raw log P?"),
     ("dc", "dc-gailreward", "emd", "does the SoftFlow density beat a discriminator in Alg. 2?"),
     ("gail", "gail-state", "emd", "does a state-only discriminator change GAIL?"),
+    ("gail", "gail-noisy", "scaled_return", "does GAIL's quieter start (log-std -2) help it?"),
     ("dc-mix", "dc", "emd", "does the mixture policy help DC?"),
     ("bc-mix", "bc-full", "emd", "does the mixture policy help BC?"),
 )

@@ -30,6 +30,7 @@ row                     stage  what it is
 ``dc-raw``              2      DC with the paper's raw reward log P_w(s')
 ``dc-gailreward``       2      Algorithm 2 with GAIL's -log(1 - D(s')) in place of log P_w
 ``gail-state``          2      GAIL with a state-only D(s): action noise cannot give it away
+``gail-noisy``          2      GAIL exploring with the warm start's log-std -0.5 (untuned)
 ``dril`` ... ``gpril``  3      the paper's other baselines, from the same start
 ``bc-mix``, ``dc-mix``  4      the mixture policy (4 components): BC as bc-full, DC from it
 ``dc-coin`` ...         4      the hidden-coin demonstrations: DC, mixture BC and DC
@@ -93,6 +94,7 @@ ROWS = {r.name: r for r in (
     Row("dc", "raw", 2, (("reward", "raw"),)),
     Row("dc", "gailreward", 2, (("reward", "gail"),)),
     Row("gail", "state", 2, (("disc_actions", False),)),
+    Row("gail", "noisy", 2, (("start_log_std", _bc.WARM_START_LOG_STD),)),
     Row("dril", "", 3), Row("pwil", "", 3), Row("ndi", "", 3), Row("gpril", "", 3),
     Row("bc", "mix", 4, mixture=True),
     Row("dc", "mix", 4, mixture=True),
@@ -279,6 +281,7 @@ PAIRS = (("dc", "bc"), ("dc", "gail"), ("dc", "bc-all"), ("dc", "bc-full"), ("ga
          ("bc-all", "bc"), ("bc-full", "bc-all"), ("bc-lib", "bc-full"), ("dc", "bc-lib"),
          ("gail", "bc-lib"),
          ("dc", "dc-noppo"), ("dc", "dc-raw"), ("dc", "dc-gailreward"), ("gail", "gail-state"),
+         ("gail", "gail-noisy"),
          ("dc", "dril"), ("dc", "pwil"), ("dc", "ndi"), ("dc", "gpril"),
          ("bc-mix", "bc-full"), ("dc-mix", "dc"), ("dc-coin", "bc-coin"),
          ("bc-mix-coin", "bc-coin"), ("dc-mix-coin", "dc-coin"))
