@@ -1,0 +1,70 @@
+"""Chapter 06's readers of the single-mode benchmark: the rules, on constructed records."""
+
+import numpy as np
+import pytest
+
+from dc_lesson.experiments import table_three as t3
+
+
+def _record(values: dict, task="halfcheetah", n=11):
+    rows = [{"task": task, "n_demos": n, "row": r, "n_seeds": 3, "scaled_return_mean": v,
+             "scaled_return_lo": v - 0.1, "scaled_return_hi": v + 0.1} for r, v in values.items()]
+    return {"table": rows, "observations": []}
+
+
+def test_the_paper_table_has_one_entry_per_column_and_bc_grows_with_demonstrations():
+    for task, by_n in t3.PAPER_TABLE_III.items():
+        for n, cols in by_n.items():
+            assert len(cols) == len(t3.PAPER_COLUMNS), (task, n)
+            assert all(s >= 0 for _, s in cols)
+    # the reading of the lost header rests on these two statements of the text
+    gpril, lowest = t3.PAPER_COLUMNS.index("gpril"), []
+    for task, by_n in t3.PAPER_TABLE_III.items():
+        bc = [by_n[n][0][0] for n in sorted(by_n)]
+        assert bc[-1] > bc[0], task
+        lowest += [cols[gpril][0] == min(m for m, _ in cols) for cols in by_n.values()]
+    assert sum(not x for x in lowest) == 1, "GPRIL's column is lowest in all entries but one"
+    assert sorted(t3.PAPER_COLUMNS) == sorted(t3.LEARNERS)
+
+
+def test_kendall_tau_matches_scipy_and_refuses_bad_input():
+    scipy_stats = pytest.importorskip("scipy.stats")
+    rng = np.random.default_rng(0)
+    for _ in range(20):
+        x, y = rng.normal(size=6), rng.normal(size=6)
+        assert t3.kendall_tau(x, y) == pytest.approx(scipy_stats.kendalltau(x, y).statistic)
+    with pytest.raises(ValueError, match="one length"):
+        t3.kendall_tau([1, 2, 3], [1, 2])
+
+
+def test_rank_agreement_reads_orderings_not_scales():
+    paper = dict(zip(t3.PAPER_COLUMNS, (m for m, _ in t3.PAPER_TABLE_III["halfcheetah"][11])))
+    same = _record({k: v / 10_000 for k, v in paper.items()})      # another scale, same order
+    flipped = _record({k: -v for k, v in paper.items()})
+    assert t3.rank_agreement(same, "halfcheetah", 11)["tau"] == pytest.approx(1.0)
+    assert t3.rank_agreement(flipped, "halfcheetah", 11)["tau"] == pytest.approx(-1.0)
+    r = t3.rank_agreement(same, "halfcheetah", 11)
+    assert r["paper_best"] == r["our_best"] == max(paper, key=paper.get)
+    # too few shared learners, or a count the paper does not have: no verdict
+    assert t3.rank_agreement(_record({"bc": 1, "dc": 2}), "halfcheetah", 11)["tau"] is None
+    assert t3.rank_agreement(same, "halfcheetah", 7)["tau"] is None
+
+
+def test_figure_readers_group_sort_and_keep_seeds():
+    rec = {"table": [{"task": "ant", "n_demos": n, "row": "dc", "n_seeds": 2,
+                      "scaled_return_mean": n / 25, "scaled_return_lo": 0, "scaled_return_hi": 1}
+                     for n in (25, 4, 11)],
+           "observations": [{"task": "ant", "row": "gail", "seed": s,
+                             "curve": [{"steps": 10, "scaled_return": 0.1 * s},
+                                       {"steps": 20, "scaled_return": 0.2 * s}]}
+                            for s in range(3)]}
+    n, mean, lo, hi = t3.figure9(rec, "ant")["dc"]
+    assert n.tolist() == [4, 11, 25] and mean.tolist() == [4 / 25, 11 / 25, 1.0]
+    curves = t3.figure11(rec, "ant")["gail"]
+    assert len(curves) == 3 and curves[2] == [(10, 0.2), (20, 0.4)]
+    rec1 = {"mean": {"observations": [
+        {"task": "reacher4", "row": r, "seed": s, "emd": 0.1 * s, "scaled_return": 0.5}
+        for r in ("expert", "dc", "dc-raw") for s in range(4)]}}
+    fig = t3.figure8(rec1)["reacher4"]
+    assert set(fig) == {"expert", "dc"}, "controls are not learners of Figure 8"
+    assert len(fig["dc"][0]) == 4, "one point per seed"
