@@ -68,3 +68,34 @@ def test_figure_readers_group_sort_and_keep_seeds():
     fig = t3.figure8(rec1)["reacher4"]
     assert set(fig) == {"expert", "dc"}, "controls are not learners of Figure 8"
     assert len(fig["dc"][0]) == 4, "one point per seed"
+
+
+def _obs(diff, n_seeds=6, tasks=("ant", "walker"), counts=(4, 11), noise=0.01, seed=0):
+    rng = np.random.default_rng(seed)
+    out = []
+    for task in tasks:
+        for n in counts:
+            for s in range(n_seeds):
+                base = rng.normal(0.5, 0.1)
+                for row, v in (("bc", base), ("dril", base), ("gpril", base - diff),
+                               ("dc", base + diff + noise * (-1) ** s)):
+                    out.append({"task": task, "n_demos": n, "row": row, "seed": s,
+                                "scaled_return": v})
+    return {"observations": out}
+
+
+def test_verdicts_give_each_answer_and_judge_dril_at_the_fewest_demonstrations_only():
+    better = t3.verdicts(_obs(0.2))
+    assert {v["verdict"] for v in better if v["claim"] == t3.DC_BEATS_BC.name} == \
+        {"reproduced (all 2 tasks)"}
+    assert [v["n_demos"] for v in better if v["claim"] == t3.DC_BEATS_DRIL_FEW.name] == [4]
+    assert {v["verdict"] for v in better if v["claim"] == t3.GPRIL_LOWEST.name} == \
+        {"reproduced (all 2 tasks)"}
+    worse = t3.verdicts(_obs(-0.2))
+    assert {v["verdict"] for v in worse if v["claim"] == t3.DC_BEATS_BC.name} == \
+        {"contradicted (all 2 tasks)"}
+    null = t3.verdicts(_obs(0.0, noise=0.05))
+    assert {v["verdict"] for v in null if v["claim"] == t3.DC_BEATS_BC.name} == \
+        {"inconclusive (all 2 tasks)"}
+    few = t3.verdicts(_obs(0.2, n_seeds=3))
+    assert all(v["verdict"].startswith("inconclusive") for v in few), "too few seeds"
