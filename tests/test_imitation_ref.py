@@ -13,9 +13,10 @@ def test_the_layer_map_covers_our_policy_exactly():
     assert set(imitation_ref.LAYERS) == set(ours)
     # the same recipe as table1's bc-lib row, so the comparison is like for like
     from dc_lesson.experiments.studies import table1
+    from dc_lesson.algorithms import bc
     cfg = table1.learner_config(table1.ROWS["bc-lib"], None, 0)
+    assert cfg == bc.BCConfig(seed=0, **imitation_ref.OURS)
     assert tuple(cfg.hidden) == imitation_ref.HIDDEN and cfg.batch_size == imitation_ref.BATCH
-    assert not cfg.norm_obs and cfg.log_std_init == 0.0
 
 
 @pytest.mark.skipif(importlib.util.find_spec("imitation") is not None,

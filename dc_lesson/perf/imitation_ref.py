@@ -31,6 +31,10 @@ from dc_lesson.nn.policies import GaussianPolicy
 from dc_lesson.storage import check_writable, write_result
 
 N_BATCHES, BATCH, HIDDEN = 50_000, 32, (32, 32)
+# Ours with the same recipe: table1's bc-lib row (perf does not import experiments; the test
+# checks the two agree): 89 epochs of 32 are 50,000 minibatches of 18,000 pairs.
+OURS = dict(epochs=89, batch_size=BATCH, val_fraction=0.0, hidden=HIDDEN, norm_obs=False,
+            log_std_init=0.0)
 # imitation's ActorCriticPolicy names -> ours (the value network is not used by BC)
 LAYERS = {"mean_net.0.weight": "mlp_extractor.policy_net.0.weight",
           "mean_net.0.bias": "mlp_extractor.policy_net.0.bias",
@@ -76,7 +80,6 @@ def imitation_bc(demos, seed: int, n_batches: int = N_BATCHES) -> GaussianPolicy
 def compare(task: str, seeds, n_demos: int = 18, n_episodes: int = 50,
             n_batches: int = N_BATCHES) -> dict:
     """Per seed: imitation's BC and ours (``bc-lib``'s recipe), scored alike."""
-    from dc_lesson.experiments.studies import table1
     demos = data.load_demos(task, n_trajectories=n_demos)
     rows = []
     for seed in seeds:
@@ -85,7 +88,7 @@ def compare(task: str, seeds, n_demos: int = 18, n_episodes: int = 50,
             if who == "imitation":
                 policy = imitation_bc(demos, seed, n_batches)
             else:
-                cfg = table1.learner_config(table1.ROWS["bc-lib"], None, seed)
+                cfg = bc.BCConfig(seed=int(seed), **OURS)
                 policy = bc.train(task, demos, cfg, progress=False).policy
             seconds = time.perf_counter() - t0
             ev = evaluate_policy(task, policy, demos, n_episodes=n_episodes)
