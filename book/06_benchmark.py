@@ -154,6 +154,8 @@ if t3 is not None:
 if t3 is None:
     for c in table_three.CLAIMS:
         print(f"{c.name}: not run yet\n  rule: {c.rule}")
+    print(f"{table_three.COMPARABLE}: not run yet\n  rule: the paired interval of dc - gail "
+          f"inside +-{table_three.EQUIVALENCE}: reproduced; wholly outside: contradicted")
 else:
     display(pd.DataFrame(table_three.verdicts(t3)).set_index(["claim", "n_demos"]))
     agree = [table_three.rank_agreement(t3, t, n) for t in table_three.PAPER_TABLE_III
@@ -237,6 +239,27 @@ if t1 is not None:
     for v in claims.verdicts(actions="mean"):
         if v.claim in (claims.LOWEST_DIVERGENCE.name, claims.HIGHER_RETURN.name):
             print(f"{v.claim}: {v.verdict}\n  {v.evidence}\n")
+
+# %% [markdown]
+# ## The book's verdicts in one table
+#
+# Every claim of the paper the book tests, with the rule it was judged by and the verdict the
+# stored aggregates give today: chapter 4's (Table I, the modes, the ablations) and this
+# chapter's (Table III, Figures 9 and 11). A claim whose grid has not run says so.
+
+# %%
+from dc_lesson.experiments import claims as _claims_mod
+
+book = [{"claim": v.claim, "where": v.source, "verdict": v.verdict}
+        for v in _claims_mod.verdicts(actions="mean")]
+if t3 is not None:
+    book += [{"claim": v["claim"], "where": f"Table III, {v['n_demos']} demonstrations",
+              "verdict": v["verdict"]} for v in table_three.verdicts(t3)]
+else:
+    book += [{"claim": c, "where": "Table III / Figures 9, 11", "verdict": "not run yet"}
+             for c in [c.name for c in table_three.CLAIMS] + [table_three.COMPARABLE]]
+with pd.option_context("display.max_colwidth", 90):
+    display(pd.DataFrame(book).set_index("claim"))
 
 # %% [markdown]
 # ## Summary

@@ -99,3 +99,47 @@ def test_verdicts_give_each_answer_and_judge_dril_at_the_fewest_demonstrations_o
         {"inconclusive (all 2 tasks)"}
     few = t3.verdicts(_obs(0.2, n_seeds=3))
     assert all(v["verdict"].startswith("inconclusive") for v in few), "too few seeds"
+
+
+def _single(dc_minus_gail, spread, bc_growth, n_seeds=6):
+    out = []
+    for task in ("ant", "hopper"):
+        for n in (4, 25):
+            for s in range(n_seeds):
+                wobble = spread * (-1) ** s
+                bc = 0.4 + (bc_growth if n == 25 else 0.0) + 0.01 * s
+                gail = 0.6 + 0.01 * s
+                dc = gail + dc_minus_gail + wobble
+                for row, v, curve in (("bc", bc, None), ("gail", gail, [gail - 0.2, gail]),
+                                      ("dc", dc, [dc - 0.2 + dc_minus_gail, dc])):
+                    out.append({"task": task, "n_demos": n, "row": row, "seed": s,
+                                "scaled_return": v,
+                                "curve": curve and [{"steps": 1, "scaled_return": curve[0]},
+                                                    {"steps": 2, "scaled_return": curve[1]}]})
+    return {"observations": out}
+
+
+def _verdict(vs, claim, n=None):
+    return {v["verdict"] for v in vs if v["claim"] == claim and (n is None or v["n_demos"] == n)}
+
+
+def test_comparability_is_an_equivalence_rule_with_a_declared_margin():
+    assert _verdict(t3.verdicts(_single(0.0, 0.01, 0.2)), t3.COMPARABLE) == \
+        {"reproduced (all 2 tasks)"}
+    assert _verdict(t3.verdicts(_single(0.3, 0.01, 0.2)), t3.COMPARABLE) == \
+        {"contradicted (all 2 tasks)"}
+    # an interval that straddles the margin decides nothing
+    assert _verdict(t3.verdicts(_single(0.0, 0.2, 0.2)), t3.COMPARABLE) == \
+        {"inconclusive (all 2 tasks)"}
+
+
+def test_bc_growth_compares_the_fewest_with_the_most_demonstrations_and_curves_are_judged():
+    grows = t3.verdicts(_single(0.1, 0.01, 0.2))
+    assert _verdict(grows, t3.BC_IMPROVES.name) == {"reproduced (all 2 tasks)"}
+    assert [v["n_demos"] for v in grows if v["claim"] == t3.BC_IMPROVES.name] == ["4 -> 25"]
+    assert _verdict(t3.verdicts(_single(0.1, 0.01, -0.2)), t3.BC_IMPROVES.name) == \
+        {"contradicted (all 2 tasks)"}
+    assert _verdict(grows, t3.DC_FASTER.name, 4) == {"reproduced (all 2 tasks)"}
+    assert _verdict(t3.verdicts(_single(-0.1, 0.01, 0.2)), t3.DC_FASTER.name, 4) == \
+        {"contradicted (all 2 tasks)"}
+    assert t3.verdicts({"observations": []}) == []

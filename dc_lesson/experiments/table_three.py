@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from dc_lesson.evaluation import stats
 from dc_lesson.experiments import claims as _claims
 from dc_lesson.experiments.report import fmt
 from dc_lesson.storage import read_result
@@ -169,20 +170,83 @@ GPRIL_LOWEST = _claims.Claim(
     "GPRIL is below BC", "Sec. V, Fig. 9", "scaled_return", "gpril", "bc", -1,
     "the paper: 'the GPRIL learner policies have the lowest performances in all tasks'; "
     "judged against BC, the weakest of the others in its table")
-CLAIMS = (DC_BEATS_BC, DC_BEATS_DRIL_FEW, GPRIL_LOWEST)
+BC_IMPROVES = _claims.Claim(
+    "BC improves with more demonstrations", "Sec. V, Fig. 9", "scaled_return",
+    "bc@most", "bc@fewest", +1, "the paper: 'the performance of the BC learner policies "
+    "increase with more expert demonstrations'; BC at the most demonstrations against BC at "
+    "the fewest, paired by seed")
+DC_FASTER = _claims.Claim(
+    "DC learns faster and more stably than GAIL", "Sec. V, Fig. 11", "curve_mean",
+    "dc", "gail", +1, "the paper: 'DC has more stable training curves ... with higher "
+    "convergence speed'; the mean of a run's checkpoint evaluations (the area under its "
+    "Figure 11 curve, mean action) is high only if the run gets good early and stays good")
+CLAIMS = (DC_BEATS_BC, DC_BEATS_DRIL_FEW, GPRIL_LOWEST, BC_IMPROVES, DC_FASTER)
+
+# "DC has comparable performances with GAIL" is an equivalence claim: judged by whether the
+# paired interval of dc - gail lies inside +-EQUIVALENCE (reproduced), wholly outside it
+# (contradicted), or neither (inconclusive).  A margin of a tenth of the expert's return over
+# random is our declaration, fixed before any result.
+EQUIVALENCE = 0.1
+COMPARABLE = "DC is comparable to GAIL (within +-0.1 scaled return)"
+
+
+def _equivalence(obs, n: int) -> dict:
+    per_task, parts = [], []
+    for task in dict.fromkeys(o["task"] for o in obs):
+        seeds, va, vb = _claims.paired_values(obs, task, "dc", "gail", "scaled_return")
+        if not seeds:
+            continue
+        ci = stats.paired_diff(va, vb)
+        if len(seeds) < _claims.MIN_SEEDS or not (np.isfinite(ci.lo) and np.isfinite(ci.hi)):
+            word = "inconclusive"
+        elif -EQUIVALENCE < ci.lo and ci.hi < EQUIVALENCE:
+            word = "reproduced"
+        elif ci.lo > EQUIVALENCE or ci.hi < -EQUIVALENCE:
+            word = "contradicted"
+        else:
+            word = "inconclusive"
+        per_task.append((task, word))
+        parts.append(f"{task}: dc - gail = {ci.mean:+.3f} [{ci.lo:+.3f}, {ci.hi:+.3f}] over "
+                     f"{len(seeds)} seeds -> {word}")
+    return {"claim": COMPARABLE, "n_demos": n, "verdict": _claims.count(per_task),
+            "evidence": "; ".join(parts) or "no paired results",
+            "rule": f"scaled_return: paired 95% interval of (dc - gail) per seed; reproduced "
+                    f"if inside +-{EQUIVALENCE}, contradicted if wholly outside, "
+                    f"inconclusive otherwise"}
+
+
+def _curve_mean(o) -> float | None:
+    c = o.get("curve")
+    return float(np.mean([p["scaled_return"] for p in c])) if c else None
 
 
 def verdicts(rec: dict) -> list[dict]:
-    """Each claim's verdict per demonstration count (DRIL's at the fewest only), over the
-    tasks that have run: ``{"claim", "n_demos", "verdict", "evidence", "rule"}``."""
-    obs = [o for o in rec["observations"] if o["row"] != "expert"]
+    """Each claim's verdict per demonstration count (DRIL's and the curves' at the fewest
+    only, BC's growth once, fewest against most), over the tasks that have run:
+    ``{"claim", "n_demos", "verdict", "evidence", "rule"}``."""
+    obs = [{**o, "curve_mean": _curve_mean(o)} for o in rec["observations"]
+           if o["row"] != "expert"]
     counts = sorted({o["n_demos"] for o in obs})
     out = []
+    if not counts:
+        return out
     for claim in CLAIMS:
-        for n in (counts[:1] if claim is DC_BEATS_DRIL_FEW else counts):
-            v = _claims.judge_claim(claim, [o for o in obs if o["n_demos"] == n])
+        if claim is BC_IMPROVES:
+            if len(counts) < 2:
+                continue
+            rows = [{**o, "row": "bc@fewest" if o["n_demos"] == counts[0] else "bc@most"}
+                    for o in obs if o["row"] == "bc" and o["n_demos"] in (counts[0],
+                                                                          counts[-1])]
+            groups = [(f"{counts[0]} -> {counts[-1]}", rows)]
+        else:
+            few = claim in (DC_BEATS_DRIL_FEW, DC_FASTER)
+            groups = [(n, [o for o in obs if o["n_demos"] == n])
+                      for n in (counts[:1] if few else counts)]
+        for n, group in groups:
+            v = _claims.judge_claim(claim, group)
             out.append({"claim": claim.name, "n_demos": n, "verdict": v.verdict,
                         "evidence": v.evidence, "rule": claim.rule})
+    out += [_equivalence([o for o in obs if o["n_demos"] == n], n) for n in counts]
     return out
 
 
@@ -199,5 +263,5 @@ def figure8(rec1: dict, actions: str = "mean") -> dict:
             for t, rows in out.items()}
 
 
-__all__ = ["CLAIMS", "DC_BEATS_BC", "DC_BEATS_DRIL_FEW", "GPRIL_LOWEST", "LEARNERS", "PAPER_COLUMNS", "PAPER_TABLE_III", "RESULT", "figure11", "figure8",
+__all__ = ["BC_IMPROVES", "CLAIMS", "COMPARABLE", "DC_BEATS_BC", "DC_FASTER", "EQUIVALENCE", "DC_BEATS_DRIL_FEW", "GPRIL_LOWEST", "LEARNERS", "PAPER_COLUMNS", "PAPER_TABLE_III", "RESULT", "figure11", "figure8",
            "figure9", "kendall_tau", "load", "paper_rows", "rank_agreement", "table", "verdicts"]
