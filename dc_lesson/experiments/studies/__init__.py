@@ -4,15 +4,15 @@
 |---|---|---|
 | ``reference`` | (read by the others) | fresh expert episodes per task, collected once |
 | ``bc_demos`` | ``bc_demos.json`` | BC per task, demonstration count and seed; the expert row |
-| ``bc_drift`` | ``bc_drift.json`` | BC's distance from the demonstrated states, and the expert's |
+| ``bc_drift`` | ``bc_drift_cells.json`` (chapter 01 still reads the bench file ``bc_drift.json``) | BC's distance from the demonstrated states, and the expert's |
 | ``gail_modes`` | ``gail_modes.json`` | BC warm start and GAIL per multi-mode task and seed |
-| ``gail_lr`` | ``gail_lr.json`` | GAIL per learning rate and seed on halfcheetah |
+| ``gail_lr`` | ``gail_lr.json`` | GAIL per learning rate and seed on hopper (11 demonstrations) |
 | ``dc_modes`` | ``dc_modes.json`` | BC warm start and DC per multi-mode task and seed |
-| ``dc_ablation`` | ``dc_ablation.json`` | DC's loop counts (one seed) and consensus ADMM (all seeds) |
-| ``dc_lr`` | ``dc_lr.json`` | DC per learning rate and seed on halfcheetah |
+| ``dc_ablation`` | ``dc_ablation.json`` | DC's loop counts, one long loop and consensus ADMM on hopper (11 demonstrations), every seed |
+| ``dc_lr`` | ``dc_lr.json`` | DC per learning rate and seed on hopper (11 demonstrations) |
 | ``table1`` | ``table1.json`` | every learner and control on the multi-mode tasks, both evaluations |
 | ``table3`` | ``table3.json`` | every learner on the single-mode tasks per demonstration count |
-| ``softflow_fit`` | ``softflow_fit.json`` | SoftFlow on the circle toy and on expert states |
+| ``softflow_fit`` | ``softflow_fit_cells.json`` (chapter 03 still reads the bench file ``softflow_fit.json``) | SoftFlow on the circle toy and on expert states |
 """
 
 from __future__ import annotations

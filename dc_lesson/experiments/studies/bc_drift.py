@@ -76,4 +76,4 @@ def aggregate(recs, b):
 
 STUDY = cells.Study(NAME, "BC's drift from the demonstrated states (chapter 01)",
                     cells=cells_at, run_cell=run_cell, aggregate=aggregate,
-                    result_file="bc_drift.json")
+                    result_file="bc_drift_cells.json")

@@ -61,4 +61,4 @@ def aggregate(recs, b):
 
 STUDY = cells.Study(NAME, "SoftFlow on the circle toy and on expert states (chapter 03)",
                     cells=cells_at, run_cell=run_cell, aggregate=aggregate,
-                    result_file="softflow_fit.json")
+                    result_file="softflow_fit_cells.json")
