@@ -647,7 +647,8 @@ lr_check.round(3)
 # share of episodes in the largest mode against the same seed's start.
 #
 # This GAIL is tuned where the runs above are not: it sets its start's log-std to $-2$
-# (`GAILConfig.start_log_std`) instead of exploring with the warm start's $-0.5$. A standard
+# (`gail.preset` sets `GAILConfig.start_log_std`; the runs above, and this chapter's live
+# run, explore with the warm start's $-0.5$). A standard
 # deviation of $e^{-0.5}=0.61$ is ten times the spread of the reacher experts' actions (about
 # 0.05), so $D(s, a)$ can separate the learner by its noise alone. It was the one change, of
 # those we tried on reacher4 against the imitation library's GAIL on the same demonstrations

@@ -189,9 +189,13 @@ def test_a_given_start_explores_with_start_log_std(demos1):
         seen[value] = stds[0]
     assert torch.equal(seen[-2.0], torch.full_like(seen[-2.0], -2.0))
     assert torch.equal(seen[None], start.log_std.detach())
+    # the default keeps a start's noise; the presets (the cell studies) set the tuned value
+    assert gail.GAILConfig().start_log_std is None
+    from dc_lesson import budget
+    assert gail.preset(budget.get("lesson")).start_log_std == gail.TUNED_START_LOG_STD == -2.0
     # a fresh policy keeps PPO's initial log-std: the knob is about a warm start's noise
     fresh = []
-    gail.train("reacher1", demos, _tiny(), progress=False,
+    gail.train("reacher1", demos, _tiny(start_log_std=-2.0), progress=False,
                callback=lambda row, pi: fresh.append(pi.log_std.clone()) or True)
     assert torch.allclose(fresh[0], torch.tensor(ppo.PPOConfig().log_std_init))
 
