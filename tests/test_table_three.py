@@ -21,9 +21,14 @@ def test_the_paper_table_has_one_entry_per_column_and_bc_grows_with_demonstratio
     gpril, lowest = t3.PAPER_COLUMNS.index("gpril"), []
     for task, by_n in t3.PAPER_TABLE_III.items():
         bc = [by_n[n][0][0] for n in sorted(by_n)]
-        assert bc[-1] > bc[0], task
-        lowest += [cols[gpril][0] == min(m for m, _ in cols) for cols in by_n.values()]
-    assert sum(not x for x in lowest) == 1, "GPRIL's column is lowest in all entries but one"
+        # BC grows on every locomotion task; the paper's Reacher row falls from 18 to 25
+        assert (bc[-1] > bc[0]) == (task != "reacher1"), task
+        lowest += [(task, n) for n, cols in by_n.items()
+                   if cols[gpril][0] != min(m for m, _ in cols)]
+    assert sorted(lowest) == [("halfcheetah", 4), ("walker", 4)], "DRIL is lower there"
+    for task, n, learner in t3.UNCERTAIN:
+        assert n in t3.PAPER_TABLE_III[task] and learner in t3.PAPER_COLUMNS
+    assert {r["uncertain"] for r in t3.paper_rows()} == {True, False}
     assert sorted(t3.PAPER_COLUMNS) == sorted(t3.LEARNERS)
 
 
@@ -77,7 +82,8 @@ def _obs(diff, n_seeds=6, tasks=("ant", "walker"), counts=(4, 11), noise=0.01, s
         for n in counts:
             for s in range(n_seeds):
                 base = rng.normal(0.5, 0.1)
-                for row, v in (("bc", base), ("dril", base), ("gpril", base - diff),
+                for row, v in (("bc", base), ("dril", base), ("gail", base), ("pwil", base),
+                               ("ndi", base), ("gpril", base - diff),
                                ("dc", base + diff + noise * (-1) ** s)):
                     out.append({"task": task, "n_demos": n, "row": row, "seed": s,
                                 "scaled_return": v})
@@ -97,7 +103,11 @@ def test_verdicts_give_each_answer_and_judge_dril_at_the_fewest_demonstrations_o
     null = t3.verdicts(_obs(0.0, noise=0.05))
     assert {v["verdict"] for v in null if v["claim"] == t3.DC_BEATS_BC.name} == \
         {"inconclusive (all 2 tasks)"}
+    assert {v["verdict"] for v in worse if v["claim"] == t3.GPRIL_LOWEST.name} == \
+        {"contradicted (all 2 tasks)"}
     few = t3.verdicts(_obs(0.2, n_seeds=3))
+    assert {v["claim"] for v in few} >= {t3.DC_BEATS_BC.name, t3.GPRIL_LOWEST.name,
+                                         t3.COMPARABLE}
     assert all(v["verdict"].startswith("inconclusive") for v in few), "too few seeds"
 
 
@@ -123,13 +133,21 @@ def _verdict(vs, claim, n=None):
     return {v["verdict"] for v in vs if v["claim"] == claim and (n is None or v["n_demos"] == n)}
 
 
-def test_comparability_is_an_equivalence_rule_with_a_declared_margin():
+def test_comparability_is_non_inferiority_with_a_declared_margin():
     assert _verdict(t3.verdicts(_single(0.0, 0.01, 0.2)), t3.COMPARABLE) == \
         {"reproduced (all 2 tasks)"}
+    # better than GAIL is "comparable or better": reproduced, not contradicted
     assert _verdict(t3.verdicts(_single(0.3, 0.01, 0.2)), t3.COMPARABLE) == \
+        {"reproduced (all 2 tasks)"}
+    assert _verdict(t3.verdicts(_single(-0.3, 0.01, 0.2)), t3.COMPARABLE) == \
         {"contradicted (all 2 tasks)"}
-    # an interval that straddles the margin decides nothing
+    # a mean beyond the margin whose interval straddles it decides nothing, nor does a
+    # mean inside it with a wide interval
+    assert _verdict(t3.verdicts(_single(-0.12, 0.05, 0.2)), t3.COMPARABLE) == \
+        {"inconclusive (all 2 tasks)"}
     assert _verdict(t3.verdicts(_single(0.0, 0.2, 0.2)), t3.COMPARABLE) == \
+        {"inconclusive (all 2 tasks)"}
+    assert _verdict(t3.verdicts(_single(0.0, 0.01, 0.2, n_seeds=4)), t3.COMPARABLE) == \
         {"inconclusive (all 2 tasks)"}
 
 
@@ -143,3 +161,10 @@ def test_bc_growth_compares_the_fewest_with_the_most_demonstrations_and_curves_a
     assert _verdict(t3.verdicts(_single(-0.1, 0.01, 0.2)), t3.DC_FASTER.name, 4) == \
         {"contradicted (all 2 tasks)"}
     assert t3.verdicts({"observations": []}) == []
+
+
+def test_the_lesson_grid_has_seeds_enough_for_a_verdict():
+    from dc_lesson import budget
+    from dc_lesson.experiments import claims
+    for name in ("lesson", "paper"):
+        assert budget.get(name).table3_seeds >= claims.MIN_SEEDS, name
