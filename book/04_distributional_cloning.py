@@ -394,7 +394,7 @@ display(pd.DataFrame(rows).fillna(""))
 # demonstrations (what the RL rows see), once with early stopping on the task's 7 other
 # expert episodes (`bc-all`), once trained to a fixed budget with no early stopping
 # (`bc-full`; whether held-out early stopping costs BC anything is the `bc-full - bc-all`
-# control below), and once exactly as the standard library trains it (`bc-lib`: imitation
+# control below), and once with the standard library's recipe (`bc-lib`: imitation
 # 1.0.1's 32-32 network without an observation normaliser, 50,000 minibatches of 32, so
 # that no learner wins against a BC weaker than a user would get off the shelf), DC without
 # its PPO step, DC with the paper's raw reward, Algorithm 2 with GAIL's
@@ -418,6 +418,34 @@ else:
                                         if actions == "sampled" else ""))
         with pd.option_context("display.max_colwidth", 70, "display.width", 250):
             display(frame)
+
+# %% [markdown]
+# Is `bc-lib` as good as the library itself? `python -m dc_lesson.perf.imitation_ref` (run
+# where imitation 1.0.1 is installed; it is not a dependency) trains imitation's own BC on
+# the same reacher4 demonstrations, copies its weights into our policy class and scores both
+# with our evaluation. Seeds of the two libraries draw different random numbers, so the
+# comparison is unpaired:
+
+# %%
+from dc_lesson.evaluation import stats as _stats
+
+try:
+    ref = read_result("imitation_reference.json")
+except FileNotFoundError:
+    ref = None
+    print("imitation_reference.json has not been made on this checkout")
+if ref is not None:
+    by = {who: [r["scaled_return"] for r in ref["rows"] if r["library"] == who]
+          for who in ("imitation", "ours")}
+    d = _stats.unpaired_diff(by["ours"], by["imitation"])
+    display(Markdown(
+        f"On `{ref['task']}` ({ref['n_demos']} demonstrations, {ref['n_episodes']} episodes, "
+        f"mean action): imitation's BC {np.mean(by['imitation']):.3f} over "
+        f"{len(by['imitation'])} seeds (lowest {min(by['imitation']):.3f}), ours with its "
+        f"recipe {np.mean(by['ours']):.3f} (lowest {min(by['ours']):.3f}); ours minus "
+        f"imitation {d.mean:+.3f}, 95% interval [{d.lo:+.3f}, {d.hi:+.3f}]: "
+        + ("no difference detected." if d.lo <= 0 <= d.hi else
+           ("ours is lower." if d.hi < 0 else "ours is higher."))))
 
 # %% [markdown]
 # Lower is better for EMD, KL, RKL and mode TV; higher for the scaled return (0 random, 1

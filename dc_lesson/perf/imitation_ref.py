@@ -6,8 +6,9 @@ a 32-32 tanh MLP, no observation normaliser, Adam at 1e-3, 50,000 minibatches of
 weight 1e-3), copies its weights into our :class:`~dc_lesson.nn.policies.GaussianPolicy`
 (same layers, same activation: the mean action is the same function), and scores it with our
 own :func:`~dc_lesson.evaluation.evaluate_policy` (mean action, 50 episodes from the evaluation
-seed; its EMD is to the demonstrations trained on).  Beside it, the same seeds of our BC with the same
-recipe (``table1``'s ``bc-lib`` row), so one command gives both.
+seed; its EMD is to the demonstrations trained on).  Beside it, our BC with the same recipe (``table1``'s ``bc-lib`` row)
+on seeds of the same numbers, so one command gives both; the two libraries draw different
+random numbers from a seed, so the seeds are not paired.
 
 imitation is not a dependency of dc_lesson (it pins gymnasium 0.29.1, stable-baselines3 2.2.1
 and an older shimmy): install it in its own environment that sees this one's packages,
