@@ -530,6 +530,11 @@ if t1 is not None:
 # The return of the *stochastic* training episodes as they finish, DC's (π' sampling) and
 # GAIL's, against environment steps; mean and range over seeds, interpolated to a common grid.
 # From the Table I cells (realizable experts) once they have run, else the coin-flip runs.
+# Read it with its confound in mind: these returns are earned at each learner's own
+# exploration noise, and Table I's GAIL starts at a log-std of $-2$ while DC starts at
+# $-0.5$, so GAIL's early episodes are quieter, not necessarily better; the claim judged on
+# them (`claims.FASTER`) inherits that. Chapter 6's Figure 11 measures the same question with
+# deterministic evaluations at checkpoints.
 
 
 # %%
