@@ -15,7 +15,7 @@ def test_the_layer_map_covers_our_policy_exactly():
     from dc_lesson.experiments.studies import table1
     from dc_lesson.algorithms import bc
     cfg = table1.learner_config(table1.ROWS["bc-lib"], None, 0)
-    assert cfg == bc.BCConfig(seed=0, **imitation_ref.OURS)
+    assert cfg == bc.library_recipe(0)
     assert tuple(cfg.hidden) == imitation_ref.HIDDEN and cfg.batch_size == imitation_ref.BATCH
 
 

@@ -384,6 +384,18 @@ def warm_start(task: str, n_demos: int, seed: int, *, max_epochs: int = 200,
     return policy, demos, log
 
 
+# -- the standard library's recipe -------------------------------------------------------------
+
+def library_recipe(seed: int = 0) -> BCConfig:
+    """BC as imitation 1.0.1's training script trains it (its FeedForward32Policy: 32-32 tanh,
+    no observation normaliser, Adam 1e-3, log-std 0, the last weights kept): 89 epochs of 32
+    pairs, its 50,000 minibatches on the 18,000 pairs of 18 1,000-step demonstrations.  Its
+    entropy bonus of 1e-3 is left out: it moves only the log-std, never the mean action.
+    table1's ``bc-lib`` row and ``perf.imitation_ref`` both train this."""
+    return BCConfig(epochs=89, batch_size=32, val_fraction=0.0, hidden=(32, 32),
+                    norm_obs=False, log_std_init=0.0, seed=seed)
+
+
 # -- the learner interface -----------------------------------------------------------------------
 
 def preset(budget, seed: int = 0) -> BCConfig:

@@ -78,7 +78,7 @@ Implementation details, each a field of :class:`GAILConfig`:
   expert by the action noise alone, and the reward teaches nothing about states.  At -2
   (std 0.14) GAIL on reacher4 (18 demonstrations, 5 seeds, mean action) reached a scaled
   return of 0.56 on average against 0.27 at -0.5 (4 of 5 seeds higher, EMD lower on all 5)
-  and imitation 1.0.1's GAIL's 0.54: the one GAIL knob tuned, on reacher4 only; lower
+  and imitation 1.0.1's GAIL's 0.54 (one seed, an exploratory script outside the repo): the one GAIL knob tuned, on reacher4 only; lower
   learning rates (1e-4, 3e-5), the logit reward and SB3's PPO minibatching (10 epochs of
   64) did not help there.
 * The observation normaliser inside the policy (and value network) is *frozen*, set once from

@@ -32,10 +32,6 @@ from dc_lesson.nn.policies import GaussianPolicy
 from dc_lesson.storage import check_writable, write_result
 
 N_BATCHES, BATCH, HIDDEN = 50_000, 32, (32, 32)
-# Ours with the same recipe: table1's bc-lib row (perf does not import experiments; the test
-# checks the two agree): 89 epochs of 32 are 50,000 minibatches of 18,000 pairs.
-OURS = dict(epochs=89, batch_size=BATCH, val_fraction=0.0, hidden=HIDDEN, norm_obs=False,
-            log_std_init=0.0)
 # imitation's ActorCriticPolicy names -> ours (the value network is not used by BC)
 LAYERS = {"mean_net.0.weight": "mlp_extractor.policy_net.0.weight",
           "mean_net.0.bias": "mlp_extractor.policy_net.0.bias",
@@ -89,7 +85,7 @@ def compare(task: str, seeds, n_demos: int = 18, n_episodes: int = 50,
             if who == "imitation":
                 policy = imitation_bc(demos, seed, n_batches)
             else:
-                cfg = bc.BCConfig(seed=int(seed), **OURS)
+                cfg = bc.library_recipe(int(seed))
                 policy = bc.train(task, demos, cfg, progress=False).policy
             seconds = time.perf_counter() - t0
             ev = evaluate_policy(task, policy, demos, n_episodes=n_episodes)

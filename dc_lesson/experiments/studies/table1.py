@@ -105,11 +105,6 @@ ROWS = {r.name: r for r in (
 
 
 FULL_BATCH = 64   # bc-full's minibatch: 200 epochs of 64 pairs, about 56,000 steps on 18 demos
-# bc-lib: imitation 1.0.1's BC defaults (FeedForward32Policy, batch 32, Adam 1e-3, log-std 0;
-# its entropy bonus of 1e-3 is left out: it moves only the log-std, never the mean action).
-# Its 50,000 minibatches of 32 are 89 epochs of the 18,000 pairs of 18 Table I demonstrations
-# (every Table I task has 1,000-step episodes), so bc-lib trains 89 epochs at any budget.
-LIB_HIDDEN, LIB_BATCH, LIB_EPOCHS = (32, 32), 32, 89
 
 
 def _bc_config(b, seed: int, mixture: bool, full: bool = False) -> _bc.BCConfig:
@@ -128,8 +123,7 @@ def _bc_config(b, seed: int, mixture: bool, full: bool = False) -> _bc.BCConfig:
 def learner_config(row: Row, b, seed: int):
     """The row's learner config at budget ``b`` (the budget's interactions)."""
     if row.name == "bc-lib":
-        return _bc.BCConfig(epochs=LIB_EPOCHS, batch_size=LIB_BATCH, val_fraction=0.0,
-                            hidden=LIB_HIDDEN, norm_obs=False, log_std_init=0.0, seed=seed)
+        return _bc.library_recipe(seed)
     if row.learner == "bc":
         return _bc_config(b, seed, row.mixture, full=row.variant != "all")
     algo = _algorithms.get(row.learner)
