@@ -454,19 +454,9 @@ if ref is not None:
 
 # %%
 if t1 is not None:
-    names = {"expert": "expert", "bc": "BC", "gail": "GAIL", "dc": "DC"}
-    for task, k in (("reacher4", 4), ("reacher2", 2), ("halfcheetah2", 0)):
-        feats = {label: table_one.features(t1, task, row) for row, label in names.items()}
-        feats["BC"] = table_one.features(t1, task, "dc", which="start")
-        feats = {n: f for n, f in feats.items() if f is not None}
-        if len(feats) < 2:
-            continue
-        if k:
-            plots.coverage_reacher(feats, k)
-            plt.suptitle(f"{task}: mode coverage, seeds pooled (realizable expert)", y=1.07)
-        else:
-            plots.coverage_velocity(feats, title="halfcheetah2: forward velocity, seeds "
-                                                 "pooled (realizable expert)")
+    for _ in table_one.coverage_figures(t1, {"expert": "expert", "bc": "BC", "gail": "GAIL",
+                                             "dc": "DC"}, "mode coverage, seeds pooled "
+                                                          "(realizable expert)"):
         plt.show()
 
 # %% [markdown]

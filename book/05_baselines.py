@@ -35,8 +35,10 @@
 # check. Every choice the papers leave open is listed in the module's docstring
 # (`help(dril)`).
 #
-# The stored results of the four on the multi-mode tasks will come from the sweep (a later
-# section, marked); what the live runs print at the `smoke` budget means nothing.
+# The stored results of the four on the multi-mode tasks come from chapter 4's Table I sweep
+# (the last sections: their rows with intervals, where their policies go, their orderings
+# beside the paper's, and their cost); what the live runs print at the `smoke` budget means
+# nothing.
 
 # %%
 import copy
@@ -339,6 +341,31 @@ pd.DataFrame(cost_record["rows"]).set_index("learner")[
     ["env_steps", "setup_seconds", "loop_seconds", "seconds_per_100k", "load_average"]].round(1)
 
 # %% [markdown]
+# The Table I sweep measured the same thing without extrapolating: every cell records its
+# training seconds (the learner's whole run of 300,000 interactions, flows and ensembles
+# included; not its BC start, not its evaluations), one torch thread, a second worker on
+# the other core. Cells written on different machines must not be pooled, so the table keeps
+# the cells written from `SAME_MACHINE` on (the session that ran the four baselines; GAIL's
+# and DC's cells of that session sit beside them) and gives the median per 100,000
+# interactions with the number of cells behind it.
+
+# %%
+from dc_lesson.experiments import table_one
+
+t1 = table_one.load()
+SAME_MACHINE = "2026-12-02T05:00"
+LEARNER_ROWS = ("gail", "dc", "dril", "pwil", "ndi", "gpril")
+if t1 is not None:
+    sweep_cost = pd.DataFrame([c for c in table_one.costs(t1, since=SAME_MACHINE)
+                               if c["row"] in LEARNER_ROWS])
+    if len(sweep_cost):
+        sweep_cost["median s per 100k (cells)"] = [
+            f"{x:.1f} ({n})" for x, n in zip(sweep_cost["train_per_100k"], sweep_cost["cells"])]
+        display(sweep_cost.pivot(index="row", columns="task",
+                                 values="median s per 100k (cells)")
+                .reindex([r for r in LEARNER_ROWS if r in set(sweep_cost["row"])]))
+
+# %% [markdown]
 # ## Their rows of Table I
 #
 # The four run in chapter 4's Table I study (`dc-lesson sweep table1`: the realizable
@@ -348,9 +375,6 @@ pd.DataFrame(cost_record["rows"]).set_index("learner")[
 # intervals. The table shows what has run so far (the status line says how much of the grid).
 
 # %%
-from dc_lesson.experiments import table_one
-
-t1 = table_one.load()
 BASELINES = ("dril", "pwil", "ndi", "gpril")
 if t1 is None:
     print("table1 has not run yet: dc-lesson sweep table1 && dc-lesson aggregate table1")
@@ -376,7 +400,49 @@ else:
         print("no baseline cell has run yet (they are stage 3 of the sweep)")
 
 # %% [markdown]
-#
+# **Where their policies go.** The paper's Figures 1 and 7 for all seven learners: each
+# policy's fingertip (reacher) or forward velocity (`halfcheetah2`) over its evaluation
+# episodes, mean action, seeds pooled; BC is the common start of every RL row. The table
+# above gives each row's mode TV (the total-variation distance of a seed's mode shares, with
+# "none" as a class, from the expert's) and its collapsed seeds (at least 0.8 of the
+# episodes on one mode); below the figures, the floor of that TV.
+
+# %%
+SEVEN = {"expert": "expert", "bc": "BC", "gail": "GAIL", "dc": "DC", "dril": "DRIL",
+         "pwil": "PWIL", "ndi": "NDI", "gpril": "GPRIL"}
+if t1 is not None:
+    for _ in table_one.coverage_figures(t1, SEVEN, "every learner, seeds pooled", size=2.1):
+        plt.show()
+    for task in table_one.TASKS:
+        m = next((m for m in t1["mean"]["modes"] if m["task"] == task), None)
+        if m:
+            print(f"{task}: mode TV between two samples of the expert's own shares of "
+                  f"{m['tv_floor']['n_episodes']} episodes: {m['tv_floor']['mean']:.2f} on "
+                  f"average, {m['tv_floor']['quantile']:.2f} at the 95th percentile (the "
+                  "floor of the table's mode TV column)")
+
+# %% [markdown]
+# **Beside the paper's ordering.** The paper's Table I has no GPRIL row ("no meaningful
+# results"), and its divergences are on another scale, so what compares is the *order* of
+# the six learners both tables have, lowest first, and Kendall's $\tau$ between the two
+# orders (1: the same order, 0: unrelated, -1: reversed). An ordering of means says nothing
+# of which differences are real: the paired intervals above and chapter 4's verdicts do.
+
+# %%
+if t1 is not None:
+    orders = []
+    for task in table_one.TASKS:
+        for measure in ("emd", "kl", "rkl"):
+            r = table_one.rank_agreement(t1, task, measure)
+            if r.get("tau") is not None:
+                orders.append({"task": task, "measure": measure.upper(),
+                               "paper, lowest first": " < ".join(r["paper_order"]),
+                               "ours, lowest first": " < ".join(r["our_order"]),
+                               "Kendall tau": round(r["tau"], 2)})
+    if orders:
+        with pd.option_context("display.max_colwidth", 120):
+            display(pd.DataFrame(orders).set_index(["task", "measure"]))
+
 # %% [markdown]
 # ## Exercises
 #

@@ -246,3 +246,68 @@ def test_the_headline_table_names_its_seed_and_puts_the_expert_floor_first():
     lines = text.splitlines()
     assert "seed 7" in lines[0] and lines[2].startswith("expert") and lines[3].startswith("BC")
     assert "lower is better" in lines[-1] and "'none'" in lines[-1]
+
+
+def test_the_ordering_beside_the_paper_reads_orders_not_values():
+    """Our means in the paper's EMD order (on another scale) give tau 1 and the same lowest
+    row; the reverse order gives tau -1 and disagrees; fewer than three shared rows, no tau."""
+    paper = {k: v[0] for k, v in table_one.PAPER_TABLE_I["reacher4"].items()}
+    order = sorted(paper, key=paper.get)
+
+    def rec(values):
+        return {"mean": {"table": [{"task": "reacher4", "row": k, "emd_mean": v}
+                                   for k, v in values.items()]}}
+    same = table_one.rank_agreement(rec({k: 10 + i for i, k in enumerate(order)}), "reacher4")
+    assert same["tau"] == pytest.approx(1.0) and same["agree"] and same["our_order"] == order
+    back = table_one.rank_agreement(rec({k: -i for i, k in enumerate(order)}), "reacher4")
+    assert back["tau"] == pytest.approx(-1.0) and not back["agree"]
+    assert back["our_order"] == order[::-1] and back["paper_order"] == order
+    two = table_one.rank_agreement(rec({order[0]: 1.0, order[1]: 2.0}), "reacher4")
+    assert two["tau"] is None and two["agree"]
+
+
+def test_costs_keep_one_machine_and_take_the_median_per_100k(tmp_path, monkeypatch):
+    """Cells written before ``since`` are left out; the training cost is the median of
+    train_seconds / steps * 1e5 (one slow cell does not move it); a BC row has none."""
+    monkeypatch.setenv("DC_LESSON_DATA", str(tmp_path))
+    grid = [cells.make_cell("table1", "gail", "reacher4", 18, s, {"steps": 200_000})
+            for s in range(4)] + [cells.make_cell("table1", "bc", "reacher4", 18, 0, {"x": 1})]
+    seconds = {0: 10.0, 1: 12.0, 2: 500.0, 3: 99.0}
+    times = {0: "2026-12-02T06:00", 1: "2026-12-02T06:10", 2: "2026-12-02T06:20",
+             3: "2026-12-01T06:00"}
+    for c in grid:
+        prov = cells.provenance(command="test", budget="lesson", threads=1, wall_seconds=60.0)
+        prov["time"] = times[c.seed] if c.learner == "gail" else "2026-12-02T07:00"
+        train = {"train_seconds": seconds[c.seed]} if c.learner == "gail" else {}
+        cells.write_record(c, {"v": 1, **train}, None, prov)
+    from dc_lesson.experiments import studies
+
+    class Toy:
+        def grid(self, b):
+            return grid
+    monkeypatch.setattr(studies, "get", lambda name: Toy())
+    out = {r["row"]: r for r in table_one.costs({"budget": "lesson"}, since="2026-12-02T05:00")}
+    assert out["gail"]["cells"] == 3 and out["gail"]["train_per_100k"] == pytest.approx(6.0)
+    assert out["bc"]["train_per_100k"] is None and out["bc"]["minutes"] == pytest.approx(1.0)
+    every = {r["row"]: r for r in table_one.costs({"budget": "lesson"})}
+    assert every["gail"]["cells"] == 4
+
+
+def test_coverage_figures_draw_each_task_with_rows_and_read_bc_from_dc_starts(monkeypatch):
+    """A task with fewer than two rows that ran is skipped; "BC" is the DC cells' start."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    asked = []
+
+    def features(rec, task, row, which="final"):
+        asked.append((task, row, which))
+        if task == "reacher2":
+            return None
+        return np.zeros((20, 2)) + 0.1 if task.startswith("reacher") else np.linspace(
+            -5, 5, 20)[:, None]
+    monkeypatch.setattr(table_one, "features", features)
+    figs = list(table_one.coverage_figures({}, {"expert": "expert", "bc": "BC"}, "t"))
+    assert len(figs) == 2 and ("reacher4", "dc", "start") in asked
+    assert figs[0]._suptitle.get_text() == "reacher4: t"
+    plt.close("all")

@@ -151,5 +151,17 @@ def multinomial_tv_floor(shares, n_episodes: int, *, quantile: float = 0.95,
             "q": quantile, "n_episodes": int(n_episodes)}
 
 
-__all__ = ["Interval", "LEVEL", "iqm", "iqm_ci", "mean_ci", "multinomial_tv_floor",
+def kendall_tau(x, y) -> float:
+    """Kendall's tau-a of two equally long sequences (ties count as neither)."""
+    x, y = np.asarray(x, float), np.asarray(y, float)
+    n = len(x)
+    if n < 2 or len(y) != n:
+        raise ValueError(f"kendall_tau needs two sequences of one length >= 2, got {n} and "
+                         f"{len(y)}")
+    s = sum(np.sign(x[i] - x[j]) * np.sign(y[i] - y[j])
+            for i in range(n) for j in range(i + 1, n))
+    return float(s / (n * (n - 1) / 2))
+
+
+__all__ = ["Interval", "LEVEL", "iqm", "kendall_tau", "iqm_ci", "mean_ci", "multinomial_tv_floor",
            "paired_diff", "tv", "unpaired_diff"]

@@ -11,6 +11,9 @@ detected`` when it includes zero, and ``too few seeds`` otherwise.
 
 from __future__ import annotations
 
+import statistics
+
+from dc_lesson.evaluation import stats
 from dc_lesson.experiments import claims
 from dc_lesson.experiments.report import fmt, fmt_entry
 from dc_lesson.storage import read_result
@@ -172,16 +175,22 @@ def beside_paper(rec: dict, actions: str = "mean") -> list[dict]:
 
 def rank_agreement(rec: dict, task: str, measure: str = "emd", actions: str = "mean") -> dict:
     """Which learner is lowest on ``measure`` in the paper's table and in ours (the rows both
-    have), and whether they agree."""
+    have), whether they agree, both orderings (lowest first) and Kendall's tau between them
+    (None with fewer than three shared rows)."""
     idx = {"emd": 0, "kl": 1, "rkl": 2}[measure]
     ours = {r["row"]: r[f"{measure}_mean"] for r in rec[actions]["table"]
             if r["task"] == task and r["row"] in PAPER_TABLE_I[task]}
     if not ours:
-        return {"task": task, "paper_lowest": None, "our_lowest": None, "agree": None}
+        return {"task": task, "paper_lowest": None, "our_lowest": None, "agree": None,
+                "tau": None}
     paper = {k: v[idx] for k, v in PAPER_TABLE_I[task].items() if k in ours}
     lo_p, lo_o = min(paper, key=paper.get), min(ours, key=ours.get)
+    shared = sorted(ours)
     return {"task": task, "paper_lowest": lo_p, "our_lowest": lo_o, "agree": lo_p == lo_o,
-            "rows": sorted(ours)}
+            "rows": shared, "paper_order": sorted(shared, key=paper.get),
+            "our_order": sorted(shared, key=ours.get),
+            "tau": stats.kendall_tau([paper[k] for k in shared], [ours[k] for k in shared])
+            if len(shared) >= 3 else None}
 
 
 def features(rec: dict, task: str, row: str, which: str = "final") -> "np.ndarray | None":
@@ -199,6 +208,32 @@ def features(rec: dict, task: str, row: str, which: str = "final") -> "np.ndarra
     parts = [_cells.read_features(c.path())[which] for c in grid
              if c.study == "table1" and c.task == task and c.row == row and c.path().exists()]
     return np.concatenate(parts) if parts else None
+
+
+MODE_FEATURES = (("reacher4", 4), ("reacher2", 2), ("halfcheetah2", 0))   # (task, targets)
+
+
+def coverage_figures(rec: dict, names: dict, what: str, size: float = 3.0):
+    """The paper's Figures 1 and 7 from the cells: for each multi-mode task, where each row of
+    ``names`` (row -> label) goes under its mean action, seeds pooled; the label ``"BC"``
+    shows the RL rows' common start (read from DC's cells).  Yields each figure as it is
+    drawn (a reacher's fingertip heat maps, halfcheetah2's velocity densities); tasks with
+    fewer than two rows that have run are skipped.  ``what`` completes the title."""
+    import matplotlib.pyplot as plt
+    from dc_lesson.viz import plots
+    for task, k in MODE_FEATURES:
+        feats = {label: features(rec, task, row) for row, label in names.items()}
+        if "BC" in feats:
+            feats["BC"] = features(rec, task, "dc", which="start")
+        feats = {n: f for n, f in feats.items() if f is not None}
+        if len(feats) < 2:
+            continue
+        if k:
+            plots.coverage_reacher(feats, k, size=size)
+            plt.suptitle(f"{task}: {what}", y=1.07 if size >= 3 else 1.1)
+        else:
+            plots.coverage_velocity(feats, title=f"{task}: forward velocity, {what}")
+        yield plt.gcf()
 
 
 def summary_lines(rec: dict, actions: str = "mean") -> list[str]:
@@ -243,20 +278,34 @@ def curves(rec: dict, task: str, row: str) -> list[dict]:
     return sorted(out, key=lambda d: d["seed"])
 
 
-def costs(rec: dict) -> list[dict]:
+def costs(rec: dict, since: str | None = None) -> list[dict]:
     """Per (task, row) of the cells that have run: their mean wall time in minutes (one
-    worker, one torch thread) and how many cells that is."""
+    worker, one torch thread), how many cells that is, and, for the learners that interact,
+    the median training seconds per 100,000 interactions (``train_per_100k``: the run alone,
+    not its start or its evaluations; a median, robust to a cell that shared its core).
+
+    ``since`` (an ISO time, e.g. ``"2026-12-02T05:00"``) keeps only the cells written from
+    then on: cells written on different machines must not be averaged into one cost."""
     from dc_lesson import budget as _budget
     from dc_lesson.experiments import cells as _cells, studies
     walls: dict = {}
     for c in studies.get("table1").grid(_budget.get(rec["budget"])):
         if c.study == "table1" and c.path().exists():
-            w = _cells.read_record(c.path())["provenance"]["wall_seconds"]
-            walls.setdefault((c.task, c.row), []).append(w)
-    return [{"task": t, "row": r, "minutes": sum(w) / len(w) / 60, "cells": len(w)}
-            for (t, r), w in walls.items()]
+            r = _cells.read_record(c.path())
+            if since is not None and r["provenance"]["time"] < since:
+                continue
+            steps, train = r["config"].get("steps"), r["timing"].get("train_seconds")
+            walls.setdefault((c.task, c.row), []).append(
+                (r["provenance"]["wall_seconds"],
+                 train / steps * 1e5 if steps and train is not None else None))
+    out = []
+    for (t, r), w in walls.items():
+        per = [x for _, x in w if x is not None]
+        out.append({"task": t, "row": r, "minutes": sum(x for x, _ in w) / len(w) / 60,
+                    "cells": len(w), "train_per_100k": statistics.median(per) if per else None})
+    return out
 
 
 __all__ = ["CONTROLS", "PAPER_TABLE_I", "RESULT", "ROWS", "TASKS", "beside_paper", "controls",
-           "costs", "curves", "features", "summary_lines",
+           "costs", "coverage_figures", "curves", "features", "summary_lines",
            "load", "paired", "rank_agreement", "status", "table", "word"]

@@ -27,6 +27,8 @@ from dc_lesson.experiments import claims as _claims
 from dc_lesson.experiments.report import fmt
 from dc_lesson.storage import read_result
 
+kendall_tau = stats.kendall_tau   # the chapter's name for it
+
 RESULT = "table3.json"
 LEARNERS = ("bc", "gail", "dril", "pwil", "ndi", "gpril", "dc")
 PAPER_COLUMNS = ("bc", "gail", "gpril", "dril", "pwil", "ndi", "dc")
@@ -167,20 +169,8 @@ def rank_agreement(rec: dict, task: str, n_demos: int) -> dict:
     if len(shared) < 3:
         return {"task": task, "n_demos": n_demos, "learners": shared, "tau": None}
     return {"task": task, "n_demos": n_demos, "learners": shared,
-            "tau": kendall_tau([paper[k] for k in shared], [ours[k] for k in shared]),
+            "tau": stats.kendall_tau([paper[k] for k in shared], [ours[k] for k in shared]),
             "paper_best": max(shared, key=paper.get), "our_best": max(shared, key=ours.get)}
-
-
-def kendall_tau(x, y) -> float:
-    """Kendall's tau-a of two equally long sequences (ties count as neither)."""
-    x, y = np.asarray(x, float), np.asarray(y, float)
-    n = len(x)
-    if n < 2 or len(y) != n:
-        raise ValueError(f"kendall_tau needs two sequences of one length >= 2, got {n} and "
-                         f"{len(y)}")
-    s = sum(np.sign(x[i] - x[j]) * np.sign(y[i] - y[j])
-            for i in range(n) for j in range(i + 1, n))
-    return float(s / (n * (n - 1) / 2))
 
 
 # The paper's Table III / Figure 9 claims (its Section V text), each with its rule declared
