@@ -201,7 +201,7 @@ def test_a_cached_start_is_the_policy_a_fresh_warm_start_gives():
     smoke = budget.get("smoke")
     demos = store.load_demos("reacher2", n_trajectories=4)
     c = {"bc_max_epochs": 3}
-    table1._STARTS.clear()
+    table1._im._STARTS.clear()
     first = table1._start("reacher2", demos, None, 1, smoke, c, False)
     second = table1._start("reacher2", demos, None, 1, smoke, c, False)
     fresh = bc.warm_start_policy(demos, 1, max_epochs=3)
@@ -311,3 +311,22 @@ def test_coverage_figures_draw_each_task_with_rows_and_read_bc_from_dc_starts(mo
     assert len(figs) == 2 and ("reacher4", "dc", "start") in asked
     assert figs[0]._suptitle.get_text() == "reacher4: t"
     plt.close("all")
+
+
+def test_a_table3_cell_gives_the_same_numbers_with_its_start_cached_or_fresh():
+    """table3's RL cells share the seed's warm start through the worker's cache: a cell run
+    on a cold cache and again on a warm one (the second trains no BC) gives the same numbers."""
+    from dc_lesson.experiments import protocol
+    from dc_lesson.experiments.studies import table3
+    smoke = budget.get("smoke")
+    cell = next(c for c in table3.cells_at(smoke) if c.learner == "pwil"
+                and c.task == "reacher1" and c.n_demos == max(smoke.bc_demo_counts))
+    ref = protocol.reference_cell("reacher1")
+    if not ref.path().exists():
+        pytest.skip("the reacher1 reference cell is not stored")
+    needs = [(cells.read_record(ref.path()), cells.read_features(ref.path()))]
+    table1._im._STARTS.clear()
+    cold, _ = table3.run_cell(cell, needs)
+    assert len(table1._im._STARTS) == 1
+    warm, _ = table3.run_cell(cell, needs)
+    assert cells.split_timing(cold)[0] == cells.split_timing(warm)[0]

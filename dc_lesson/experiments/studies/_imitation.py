@@ -9,6 +9,7 @@ episodes.  Its result holds ``start`` (BC) and ``final`` (the learner) measures.
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import json
 
@@ -60,6 +61,24 @@ def check_config(cell, current: dict) -> None:
     if without_seed(json.loads(json.dumps(current))) != cell.config[cell.learner]:
         raise cells.CellError(f"{cell.study}/{cell.task}/{cell.name}: the learner's config "
                               f"changed since the cell was listed; list the study again")
+
+
+_STARTS: dict = {}   # this worker's BC starts, by the key their study gives
+_STARTS_KEPT = 8     # a few seeds' worth, oldest out
+
+
+def cached_start(key: tuple, make):
+    """A copy of the BC start ``make()`` returns, trained once per worker process for ``key``
+    (which must name everything the start depends on: task, demonstrations, seed, epochs,
+    policy kind).  BC is deterministic on one thread and every learner seeds its own
+    generators, so a cached start is the very policy a fresh one would be and the cell's
+    numbers do not change (``tests/test_table1.py`` checks it); a sweep runs the rows of one
+    seed one after another, so most cells of a seed reuse the start instead of training it."""
+    if key not in _STARTS:
+        _STARTS[key] = make()
+        while len(_STARTS) > _STARTS_KEPT:
+            _STARTS.pop(next(iter(_STARTS)))
+    return copy.deepcopy(_STARTS[key])
 
 
 def observations(records, start_row: str = "bc") -> list[dict]:

@@ -165,25 +165,14 @@ def _mixture_start(policy):
     return policy
 
 
-_STARTS: dict = {}   # this worker's BC starts: (task, demos, seed, epochs, mixture) -> policy
-
-
 def _start(task, demos, variant, seed: int, b, c, mixture: bool):
-    """The seed's BC start, trained once per worker process and copied for each cell.  BC is
-    deterministic on one thread, so a cached start is the very policy a fresh one would be
-    (``tests/test_table1.py`` checks it); a sweep runs the rows of one seed one after another,
-    so the controls and baselines of a seed reuse it instead of training it again."""
+    """The seed's BC start (cached per worker: :func:`_imitation.cached_start`)."""
     key = (task, len(demos.trajectories), variant, seed, c["bc_max_epochs"], mixture)
-    if key not in _STARTS:
-        if mixture:
-            _STARTS[key] = _mixture_start(_bc.train(task, demos, _bc_config(b, seed, True,
-                                                                            full=True),
-                                                    progress=False).policy)
-        else:
-            _STARTS[key] = _bc.warm_start_policy(demos, seed, max_epochs=c["bc_max_epochs"])
-        while len(_STARTS) > 8:   # a few seeds' worth, oldest out
-            _STARTS.pop(next(iter(_STARTS)))
-    return copy.deepcopy(_STARTS[key])
+    if mixture:
+        return _im.cached_start(key, lambda: _mixture_start(_bc.train(
+            task, demos, _bc_config(b, seed, True, full=True), progress=False).policy))
+    return _im.cached_start(key, lambda: _bc.warm_start_policy(
+        demos, seed, max_epochs=c["bc_max_epochs"]))
 
 
 def _evaluate(task, policy, reference, c, seed):

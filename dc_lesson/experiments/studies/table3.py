@@ -94,7 +94,9 @@ def run_cell(cell, needs):
     if cell.learner == "bc":
         result = _bc.train(cell.task, demos, cfg, progress=False)
     else:
-        start = _bc.warm_start_policy(demos, cell.seed, max_epochs=c["bc_max_epochs"])
+        start = _im.cached_start(   # the seed's warm start, shared by its six RL cells
+            (cell.task, cell.n_demos, None, cell.seed, c["bc_max_epochs"], False),
+            lambda: _bc.warm_start_policy(demos, cell.seed, max_epochs=c["bc_max_epochs"]))
         curve, marks = [], _checkpoints(c["steps"], c["curve_points"]) if c["curve"] else []
 
         def callback(row, policy):
