@@ -112,3 +112,25 @@ def test_both_evaluations_side_by_side():
                                                                         ref.trajectories))
     with pytest.raises(ValueError, match="actions must be one of"):
         evaluation.evaluate_policy("reacher2", pi, ref, n_episodes=1, actions="greedy")
+
+
+def test_an_evaluation_without_divergences_reads_no_reference(monkeypatch):
+    """``divergences=False``: the same episodes and returns as a full evaluation, EMD / KL /
+    RKL and mode TV None, and no demonstrations loaded (never a silent stand-in reference)."""
+    import torch
+
+    from dc_lesson import data, evaluation
+    from dc_lesson.evaluation import evaluate as _evaluate
+    from dc_lesson.nn.policies import GaussianPolicy
+    spec = tasks.spec("reacher2")
+    torch.manual_seed(0)
+    pi = GaussianPolicy(spec.obs_dim, spec.act_dim)
+    full = evaluation.evaluate_policy("reacher2", pi, data.load_demos("reacher2"), n_episodes=2)
+
+    def refuse(*a, **k):
+        raise AssertionError("a reference was loaded")
+    monkeypatch.setattr(_evaluate._data, "load_demos", refuse)
+    bare = evaluation.evaluate_policy("reacher2", pi, n_episodes=2, divergences=False)
+    assert bare["returns"] == full["returns"] and bare["scaled_return"] == full["scaled_return"]
+    assert bare["emd"] is None and bare["kl"] is None and bare["rkl"] is None
+    assert bare["mode_tv"] is None and bare["mode_shares"] == full["mode_shares"]

@@ -190,8 +190,24 @@ def test_the_single_mode_grid_has_every_learner_task_count_and_seed():
         assert cfg["curve"] == (c.n_demos == min(b.bc_demo_counts) and c.learner != "bc")
         assert cfg["steps"] == (0 if c.learner == "bc" else b.table3_steps_for(c.task))
     experts = [c for c in table3.cells_at(b) if c.learner == "expert"]
-    assert sorted({c.task for c in experts}) == sorted(table3.TASKS)
+    planners = {"walker", "ant", "humanoid"}   # the sampling-planner experts
+    assert sorted({c.task for c in experts}) == sorted(set(table3.TASKS) - planners)
+    for c in grid:   # a planner task reads no reference and computes no divergence
+        assert c.config["divergences"] == (c.task not in planners)
+        assert (c.needs == ()) == (c.task in planners)
+    assert {m["task"] for m in table3.expert_manifest() if not m["expert_row"]} == planners
     assert table3._checkpoints(100, 4) == [25, 50, 75, 100]
+
+
+def test_a_planner_task_cell_measures_returns_without_a_reference():
+    """A table3 cell on walker (a planner expert) runs with no needs: its scaled return is
+    measured, its divergences are None (not computed against the training demonstrations)."""
+    from dc_lesson.experiments.studies import table3
+    smoke = budget.get("smoke")
+    cell = next(c for c in table3.cells_at(smoke) if c.learner == "bc" and c.task == "walker")
+    out, _ = table3.run_cell(cell, [])
+    assert out["final"]["emd"] is None and out["final"]["kl"] is None
+    assert np.isfinite(out["final"]["scaled_return"])
 
 
 def test_a_cached_start_is_the_policy_a_fresh_warm_start_gives():

@@ -43,20 +43,22 @@ def learner_features(trajectories) -> np.ndarray:
     return np.concatenate([t.mode_features[:-1] for t in trajectories])
 
 
-def measure(task: str, trajectories, reference: _data.Demonstrations,
+def measure(task: str, trajectories, reference: _data.Demonstrations | None,
             emd_n_max: int | None = 2000) -> dict:
-    """The measures of the module docstring for episodes already collected."""
+    """The measures of the module docstring for episodes already collected; with no
+    ``reference`` (None) only the returns and mode shares, the divergences None."""
     trajectories = list(trajectories)
     scaled, _ = _metrics.scaled_return(task, trajectories)
     returns = _rollout.returns(trajectories)
     out = {"scaled_return": scaled, "return": float(returns.mean()),
            "return_std": float(returns.std()),
-           **_metrics.compare(reference.mode_features, learner_features(trajectories),
-                              n_max=emd_n_max, seed=0)}
+           **(_metrics.compare(reference.mode_features, learner_features(trajectories),
+                               n_max=emd_n_max, seed=0) if reference is not None
+              else {"emd": None, "kl": None, "rkl": None})}
     multi = len(_tasks.spec(task).modes) > 1
     out["mode_shares"] = _metrics.mode_shares(task, trajectories) if multi else None
     out["mode_tv"] = None
-    if multi:   # against the reference's own shares: demonstrations, or fresh expert episodes
+    if multi and reference is not None:   # against the reference's own shares
         ref_shares = (_modes.mode_shares(task, reference.trajectories)
                       if hasattr(reference, "trajectories")
                       else getattr(reference, "mode_shares", None))
@@ -71,10 +73,13 @@ ACTIONS = ("mean", "sampled")
 def evaluate_policy(task: str, policy, reference: _data.Demonstrations | None = None, *,
                     n_episodes: int = 50, seed: int = EVAL_SEED,
                     emd_n_max: int | None = 2000, keep_features: bool = False,
-                    actions: str = "mean") -> dict:
+                    actions: str = "mean", divergences: bool = True) -> dict:
     """Runs ``policy`` for ``n_episodes`` fresh episodes and measures it (module docstring).
 
-    ``reference`` defaults to all the task's demonstrations.  With ``keep_features`` the
+    ``reference`` defaults to all the task's demonstrations; ``divergences=False`` measures
+    the returns (and mode shares) only, against no reference: EMD, KL and RKL are None
+    (for a study that has no fresh expert episodes to compare with, rather than comparing
+    with the training data).  With ``keep_features`` the
     result also holds ``features``, the learner's mode features (for coverage plots).
     ``actions``: ``"mean"`` (the mean action) or ``"sampled"`` (actions drawn at the
     policy's learned std, from a generator seeded by ``seed``).
@@ -82,7 +87,9 @@ def evaluate_policy(task: str, policy, reference: _data.Demonstrations | None = 
     if actions not in ACTIONS:
         raise ValueError(f"actions must be one of {ACTIONS}, got {actions!r}")
     _rollout.check_policy(task, policy)   # before loading anything or running an episode
-    if reference is None:
+    if not divergences:
+        reference = None
+    elif reference is None:
         reference = _data.load_demos(task)
     acting = policy if actions == "mean" else StochasticPolicy(policy, seed=seed)
     t0 = time.perf_counter()
