@@ -60,6 +60,15 @@ class Budget:
     # are per task ((task, steps) pairs; others take the first entry's), sized so the lesson
     # grid fits a night on a 2-core machine.  Seeds: claims.MIN_SEEDS (5), the fewest a
     # paired verdict accepts; fewer would make every Table III verdict inconclusive by design.
+    # Sizing (December 2026): `python -m dc_lesson.perf.cost --task T --steps 16384` on the
+    # costliest tasks gave, per (task, count, seed) with 100,000 interactions for each of the
+    # six RL learners, about 21 (walker), 21 (ant) and 31 (humanoid) minutes of one core on a
+    # machine 6.4x slower than the platform notes' (cheetah-run 4,281 against 27,400 dm_control
+    # steps/s) and 4-6x slower than the one that ran most of table1; on it, about 24
+    # core-hours for these three tasks, about 48 for all seven if the other four cost as much,
+    # i.e. 4 to 6 h on 2 workers at the faster machines' speed.  So 100,000 everywhere fits
+    # the night; GPRIL is half of humanoid's cost (its MAF samples predecessors one dimension
+    # at a time).  `dc-lesson sweep table3 --dry-run` re-estimates from measured cells.
     table3_seeds: int = 5
     table3_steps: tuple = (("default", 100_000),)
     table3_eval_episodes: int = 20
