@@ -307,6 +307,9 @@ def test_costs_keep_one_machine_and_take_the_median_per_100k(tmp_path, monkeypat
     assert out["bc"]["train_per_100k"] is None and out["bc"]["minutes"] == pytest.approx(1.0)
     every = {r["row"]: r for r in table_one.costs({"budget": "lesson"})}
     assert every["gail"]["cells"] == 4
+    early = {r["row"]: r for r in table_one.costs({"budget": "lesson"}, "2026-12-02T05:00",
+                                                  "2026-12-02T06:15")}
+    assert early["gail"]["cells"] == 2 and "bc" not in early
 
 
 def test_coverage_figures_draw_each_task_with_rows_and_read_bc_from_dc_starts(monkeypatch):

@@ -278,21 +278,23 @@ def curves(rec: dict, task: str, row: str) -> list[dict]:
     return sorted(out, key=lambda d: d["seed"])
 
 
-def costs(rec: dict, since: str | None = None) -> list[dict]:
+def costs(rec: dict, since: str | None = None, until: str | None = None) -> list[dict]:
     """Per (task, row) of the cells that have run: their mean wall time in minutes (one
     worker, one torch thread), how many cells that is, and, for the learners that interact,
     the median training seconds per 100,000 interactions (``train_per_100k``: the run alone,
     not its start or its evaluations; a median, robust to a cell that shared its core).
 
-    ``since`` (an ISO time, e.g. ``"2026-12-02T05:00"``) keeps only the cells written from
-    then on: cells written on different machines must not be averaged into one cost."""
+    ``since`` and ``until`` (ISO times, e.g. ``"2026-12-02T05:00"``) keep only the cells
+    written between them: cells written on different machines must not be averaged into one
+    cost."""
     from dc_lesson import budget as _budget
     from dc_lesson.experiments import cells as _cells, studies
     walls: dict = {}
     for c in studies.get("table1").grid(_budget.get(rec["budget"])):
         if c.study == "table1" and c.path().exists():
             r = _cells.read_record(c.path())
-            if since is not None and r["provenance"]["time"] < since:
+            when = r["provenance"]["time"]
+            if (since is not None and when < since) or (until is not None and when >= until):
                 continue
             steps, train = r["config"].get("steps"), r["timing"].get("train_seconds")
             walls.setdefault((c.task, c.row), []).append(
