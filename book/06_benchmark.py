@@ -113,7 +113,8 @@ display(pd.DataFrame(rows).set_index("budget"))
 # PPO network) the grid has an expert row, fresh expert episodes scored like a learner, and
 # every cell is also scored against a fresh expert reference (EMD, KL, RKL). Where it is the
 # sampling planner (walker, ant, humanoid: 0.2 to 0.7 s per control step on one core, 3.5
-# to 11 minutes an episode) that would cost about a day on its own, so those tasks' cells
+# to 11 minutes an episode on a slow machine) that would cost most of the grid's night on its
+# own, so those tasks' cells
 # measure returns only and their floor is the 50 expert episodes measured when the
 # demonstrations were made (`study.fresh_reference`, `study.expert_manifest`): one episode's
 # spread, on the scaled axis.

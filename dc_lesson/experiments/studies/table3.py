@@ -20,13 +20,14 @@ interactions per task are in :mod:`dc_lesson.budget` and in the chapter's table.
 
 The planner experts (walker, ant, humanoid: :func:`fresh_reference`) get no fresh reference
 and no expert-row cells.  Their expert is a sampling planner that costs, measured on one core
-of the 2-core machine, 0.21 s (walker), 0.43 s (ant) and 0.67 s (humanoid) per control step,
-3.5 to 11 minutes per episode: the reference's 25 episodes and the expert row's 5 x 20 would
-take about 24 hours on their own, three times the whole grid's budget.  Table III's measure
-is the scaled return, which needs no reference, so on those tasks the cells measure returns
-only (EMD, KL and RKL are None, never computed against the training demonstrations) and the
-expert's floor is the manifest's 50 expert episodes (their return's mean and spread,
-measured when the demonstrations were made), in the aggregate's ``expert_manifest``.
+of a machine 6.4x slower than the platform notes', 0.21 s (walker), 0.43 s (ant) and 0.67 s
+(humanoid) per control step, 3.5 to 11 minutes per episode: the reference's 25 episodes and
+the expert row's 5 x 20 (125 per task) would take about 45 hours there on their own, about 7
+at the notes' speed, most of the whole grid's night.  Table III's measure is the scaled
+return, which needs no reference, so on those tasks the cells measure returns only (EMD, KL
+and RKL are None, never computed against the training demonstrations) and the expert's floor
+is the manifest's 50 expert episodes (their return's mean and spread, measured when the
+demonstrations were made), in the aggregate's ``expert_manifest``.
 """
 
 from __future__ import annotations
