@@ -74,6 +74,10 @@ class Budget:
     table3_eval_episodes: int = 20
     table3_curve_points: int = 5      # Figure 11's checkpoints (fewest demonstrations only)
     table3_curve_episodes: int = 5    # deterministic episodes per checkpoint
+    # The hopper ablations (Figures 3-6): return against interactions from deterministic
+    # evaluations at these many evenly spaced checkpoints of every run, each this many episodes.
+    ablation_curve_points: int = 8
+    ablation_curve_episodes: int = 5
 
     def table3_steps_for(self, task: str) -> int:
         """Interactions of one RL run of the single-mode benchmark on ``task``."""
@@ -100,7 +104,8 @@ PRESETS: dict[str, Budget] = {
                     softflow_sigma_maxes=(0.0, 0.1), softflow_grid=25,
                     sweep_seeds_reacher=2, sweep_seeds_other=1, table3_seeds=1,
                     table3_steps=(("default", 4096),), table3_eval_episodes=2,
-                    table3_curve_points=2, table3_curve_episodes=1),
+                    table3_curve_points=2, table3_curve_episodes=1,
+                    ablation_curve_points=2, ablation_curve_episodes=1),
     "lesson": Budget("lesson", tour_episodes=10, video_steps=150, bench_steps=8000,
                      bc_demo_counts=(4, 11, 18, 25), bc_seeds=(0, 1, 2, 3, 4),
                      bc_eval_episodes=50, bc_max_epochs=200, il_demos=18,
@@ -117,6 +122,7 @@ PRESETS: dict[str, Budget] = {
                     softflow_grid=100, sweep_seeds_reacher=10, sweep_seeds_other=10,
                     table3_seeds=10, table3_steps=(("default", 1_000_000),),
                     table3_eval_episodes=50, table3_curve_points=10,
+                    ablation_curve_points=10, ablation_curve_episodes=10,
                     # the paper's grid outgrows one machine: join a Ray cluster
                     # (`ray start --head` on one node, `ray start --address HEAD:6379` on the
                     # others, a shared DC_LESSON_DATA folder) and run from the head node:

@@ -196,7 +196,6 @@ def test_the_single_mode_grid_has_every_learner_task_count_and_seed():
         assert c.config["divergences"] == (c.task not in planners)
         assert (c.needs == ()) == (c.task in planners)
     assert {m["task"] for m in table3.expert_manifest() if not m["expert_row"]} == planners
-    assert table3._checkpoints(100, 4) == [25, 50, 75, 100]
 
 
 def test_a_planner_task_cell_measures_returns_without_a_reference():

@@ -115,3 +115,30 @@ def evaluate_both(task: str, policy, reference: _data.Demonstrations | None = No
 
 __all__ = ["ACTIONS", "EVAL_SEED", "MEASURES", "evaluate_both", "evaluate_policy",
            "learner_features", "measure"]
+
+
+class CheckpointCurve:
+    """Return against interactions from deterministic evaluations (Figures 5 and 11).
+
+    Passed as a learner's ``callback(row, policy)``: each time the run's interactions
+    (``row["env_steps"]``, or ``row["steps"]``) first reach one of ``points`` evenly spaced
+    marks of ``total_steps``, ``evaluate(policy)`` runs and its scaled return is kept in
+    :attr:`points` as ``{"steps", "scaled_return"}``.  The evaluation uses its own episodes
+    and the policy's mean action, so it touches none of the run's generators: the run ends as
+    it would without it.  Never asks the learner to stop."""
+
+    def __init__(self, evaluate, total_steps: int, points: int):
+        if points < 1 or total_steps < 1:
+            raise ValueError(f"a curve needs at least one point over at least one interaction, "
+                             f"got {points} points over {total_steps}")
+        self.evaluate = evaluate
+        self.marks = [int(round(total_steps * (i + 1) / points)) for i in range(points)]
+        self.points: list[dict] = []
+
+    def __call__(self, row: dict, policy) -> bool:
+        steps = row.get("env_steps", row.get("steps"))
+        while self.marks and steps is not None and steps >= self.marks[0]:
+            self.marks.pop(0)
+            self.points.append({"steps": int(steps),
+                                "scaled_return": self.evaluate(policy)["scaled_return"]})
+        return False

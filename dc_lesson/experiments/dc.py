@@ -68,13 +68,22 @@ MEASURED = ("scaled_return", "return", "return_std", "emd", "kl", "rkl", "mode_s
 
 def run_one(task: str, seed: int, budget: _budget.Budget, reference: _data.Demonstrations,
             *, config_overrides: dict | None = None, features: dict | None = None,
-            bc_cache: dict | None = None, progress: bool = False) -> dict:
-    """BC start and DC for one (task, seed); a row of the result file."""
+            bc_cache: dict | None = None, progress: bool = False,
+            curve: tuple[int, int] | None = None) -> dict:
+    """BC start and DC for one (task, seed); a row of the result file.
+
+    ``bc_cache`` (a dict kept by the caller) holds the starts already trained, by (task, seed),
+    with their evaluations and features: the caller must give one dict per (demonstrations,
+    epochs, reference).  ``curve=(points, episodes)`` adds ``eval_curve``: the scaled return
+    of ``episodes`` deterministic episodes at ``points`` evenly spaced interaction counts
+    (:class:`~dc_lesson.evaluation.CheckpointCurve`; the run is unchanged by it)."""
     t0 = time.perf_counter()
     key = (task, seed)
     if bc_cache is not None and key in bc_cache:
-        policy, demos, bc_row = bc_cache[key]
+        policy, demos, bc_row, bc_features = bc_cache[key]
         policy = _copy(policy)
+        if features is not None and bc_features is not None:
+            features[feature_key(task, "BC", seed)] = bc_features
     else:
         policy, demos, _ = _bc.warm_start(task, budget.il_demos, seed,
                                           max_epochs=budget.bc_max_epochs)
@@ -82,13 +91,18 @@ def run_one(task: str, seed: int, budget: _budget.Budget, reference: _data.Demon
                                          n_episodes=budget.il_eval_episodes, keep_features=True)
         bc_row = {k: ev[k] for k in MEASURED}
         bc_row["seconds"] = time.perf_counter() - t0
+        bc_features = _sub(ev["features"], seed=seed)
         if features is not None:
-            features[feature_key(task, "BC", seed)] = _sub(ev["features"], seed=seed)
+            features[feature_key(task, "BC", seed)] = bc_features
         if bc_cache is not None:
-            bc_cache[key] = (_copy(policy), demos, bc_row)
+            bc_cache[key] = (_copy(policy), demos, bc_row, bc_features)
     config = dc_config(budget, seed=seed, **(config_overrides or {}))
+    checkpoints = None if curve is None else _evaluation.CheckpointCurve(
+        lambda p: _evaluation.evaluate_policy(task, p, n_episodes=curve[1], divergences=False),
+        config.loops * config.iterations * config.batch_size, curve[0])
     t1 = time.perf_counter()
-    result = _dc.train(task, demos, config, policy=policy, progress=progress)
+    result = _dc.train(task, demos, config, policy=policy, progress=progress,
+                       callback=checkpoints)
     pi, log = result.policy, result.log
     t2 = time.perf_counter()
     ev = _evaluation.evaluate_policy(task, pi, reference, n_episodes=budget.il_eval_episodes,
@@ -102,7 +116,8 @@ def run_one(task: str, seed: int, budget: _budget.Budget, reference: _data.Demon
             "dc": {**{k: ev[k] for k in MEASURED}, "train_seconds": t2 - t1,
                    "flow_seconds": float(sum(r["flow_seconds"] for r in flows)),
                    "env_steps": log[-1]["env_steps"]},
-            "config": json.loads(config.to_json()), "flows": flows, "curve": _curve(log)}
+            "config": json.loads(config.to_json()), "flows": flows, "curve": _curve(log),
+            **({} if checkpoints is None else {"eval_curve": checkpoints.points})}
 
 
 def _copy(policy):

@@ -72,21 +72,37 @@ def _measures(ev: dict) -> dict:
 def run_one(task: str, seed: int, *, n_demos: int, steps: int, eval_episodes: int,
             reference: _data.Demonstrations, bc_max_epochs: int = 200,
             config: _gail.GAILConfig | None = None, eval_seed: int = EVAL_SEED,
-            progress: bool = False) -> tuple[dict, dict]:
+            progress: bool = False, bc_cache: dict | None = None,
+            curve: tuple[int, int] | None = None) -> tuple[dict, dict]:
     """One seed on one task: BC warm start, GAIL from it, both evaluated.
 
     Returns ``(row, features)``: the row of the result file and ``{"BC": ..., "GAIL": ...}``,
-    each policy's mode features over its evaluation episodes (all of them).
+    each policy's mode features over its evaluation episodes (all of them).  ``bc_cache`` (a
+    dict kept by the caller, one per (demonstrations, epochs, evaluation)) holds the starts
+    already trained and evaluated, by (task, seed).  ``curve=(points, episodes)`` adds
+    ``eval_curve``, the scaled return of deterministic evaluations at ``points`` evenly spaced
+    interaction counts (:class:`~dc_lesson.evaluation.CheckpointCurve`).
     """
     t0 = time.perf_counter()
-    policy, demos, _ = _bc.warm_start(task, n_demos, seed, max_epochs=bc_max_epochs)
-    t1 = time.perf_counter()
-    ev_bc = _evaluation.evaluate_policy(task, policy, reference, n_episodes=eval_episodes,
-                                        seed=eval_seed, keep_features=True)
+    if bc_cache is not None and (task, seed) in bc_cache:
+        policy, demos, ev_bc, bc_seconds = copy.deepcopy(bc_cache[(task, seed)])
+        t1 = t0 + bc_seconds
+    else:
+        policy, demos, _ = _bc.warm_start(task, n_demos, seed, max_epochs=bc_max_epochs)
+        t1 = time.perf_counter()
+        ev_bc = _evaluation.evaluate_policy(task, policy, reference, n_episodes=eval_episodes,
+                                            seed=eval_seed, keep_features=True)
+        if bc_cache is not None:
+            bc_cache[(task, seed)] = copy.deepcopy((policy, demos, ev_bc, t1 - t0))
     cfg = config or gail_config(steps, seed)
+    checkpoints = None if curve is None else _evaluation.CheckpointCurve(
+        lambda p: _evaluation.evaluate_policy(task, p, n_episodes=curve[1], seed=eval_seed,
+                                              divergences=False),
+        int(cfg.ppo.n_updates * cfg.ppo.batch_size), curve[0])
     t2 = time.perf_counter()
     start = copy.deepcopy(policy) if cfg.bc_warm_start else None   # None: a fresh policy
-    result = _gail.train(task, demos, cfg, policy=start, progress=progress)
+    result = _gail.train(task, demos, cfg, policy=start, progress=progress,
+                         callback=checkpoints)
     policy, log = result.policy, result.log
     t3 = time.perf_counter()
     ev_gail = _evaluation.evaluate_policy(task, policy, reference, n_episodes=eval_episodes,
@@ -96,6 +112,7 @@ def run_one(task: str, seed: int, *, n_demos: int, steps: int, eval_episodes: in
            "steps": int(cfg.ppo.n_updates * cfg.ppo.batch_size),
            "BC": _measures(ev_bc), "GAIL": _measures(ev_gail),
            "curve": learning_curve(log),
+           **({} if checkpoints is None else {"eval_curve": checkpoints.points}),
            "disc_final": {k: float(np.mean([r[k] for r in last])) for k in
                           ("acc_expert", "acc_learner", "d_expert", "d_learner", "disc_loss",
                            "reward_mean", "reward_std")},

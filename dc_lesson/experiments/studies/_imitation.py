@@ -25,6 +25,11 @@ TASKS = ("reacher4", "reacher2", "halfcheetah2")
 ABLATION_TASK = "hopper"
 ABLATION_DEMOS = 11
 LR_TASK = ABLATION_TASK
+
+
+def ablation_curve(b: _budget.Budget) -> list[int]:
+    """[points, episodes] of the ablation cells' deterministic evaluation curve (Figure 5)."""
+    return [int(b.ablation_curve_points), int(b.ablation_curve_episodes)]
 COLLAPSE_SHARE = 0.8
 
 
@@ -79,6 +84,17 @@ def cached_start(key: tuple, make):
         while len(_STARTS) > _STARTS_KEPT:
             _STARTS.pop(next(iter(_STARTS)))
     return copy.deepcopy(_STARTS[key])
+
+
+_CACHES: dict = {}
+
+
+def worker_cache(key: tuple) -> dict:
+    """A dict kept for this worker process under ``key`` (which must name everything its
+    entries depend on beyond their own keys), for run functions that take a cache of starts
+    (``experiments.dc.run_one``, ``experiments.gail.run_one``): the same deterministic start,
+    evaluated on the same episodes, trained once per worker instead of once per cell."""
+    return _CACHES.setdefault(key, {})
 
 
 def observations(records, start_row: str = "bc") -> list[dict]:

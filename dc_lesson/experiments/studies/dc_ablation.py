@@ -4,7 +4,10 @@ Cells, on ``hopper`` with 11 demonstrations (the paper's setting): the loop abla
 number of iterations, and ``loops=1-long``: one loop with as many iterations as the longest),
 on the first seed as before and now on every seed of ``budget.seeds_for``; and consensus ADMM
 (``update=admm``, otherwise the defaults) on every seed, paired with the default averaging
-cell of the same seed.
+cell of the same seed.  Every cell keeps a deterministic evaluation curve (Figure 5:
+``budget.ablation_curve_points`` checkpoints of ``ablation_curve_episodes`` episodes) beside
+DC's own per-iteration log (the distance between pi and pi' before averaging, the change of
+pi's parameters, ADMM's residuals: Figure 6).
 """
 
 from dc_lesson.algorithms.dc import preset as dc_config
@@ -19,17 +22,19 @@ LOOPS = (1, 2, 3, 4)
 
 def cells_at(b):
     per_loop = dc_config(b, loops=4).iterations
+    curve = _im.ablation_curve(b)
     out = []
     for s in b.seeds_for(TASK):
         for L in LOOPS:
             out.append(dc_cell(NAME, TASK, s, b, overrides={"loops": L, "iterations": per_loop},
-                               variant=f"loops={L}", n_demos=_im.ABLATION_DEMOS))
+                               variant=f"loops={L}", n_demos=_im.ABLATION_DEMOS, curve=curve))
         out.append(dc_cell(NAME, TASK, s, b, overrides={"loops": 1,
                                                         "iterations": per_loop * max(LOOPS)},
-                           variant="loops=1-long", n_demos=_im.ABLATION_DEMOS))
+                           variant="loops=1-long", n_demos=_im.ABLATION_DEMOS, curve=curve))
         out.append(dc_cell(NAME, TASK, s, b, overrides={"update": "admm"},
-                           variant="update=admm", n_demos=_im.ABLATION_DEMOS))
-        out.append(dc_cell(NAME, TASK, s, b, n_demos=_im.ABLATION_DEMOS))   # averaging
+                           variant="update=admm", n_demos=_im.ABLATION_DEMOS, curve=curve))
+        out.append(dc_cell(NAME, TASK, s, b, n_demos=_im.ABLATION_DEMOS,
+                           curve=curve))   # averaging
     return out
 
 

@@ -33,13 +33,17 @@ def dc_cell(study, task, seed, b, *, overrides=None, steps=None, variant="", n_d
 
 
 def run_dc(cell, needs):
-    """One DC cell: warm start, DC, both evaluated (any DC study's cells)."""
+    """One DC cell: warm start, DC, both evaluated (any DC study's cells).  The seed's start
+    and its evaluation are trained once per worker (:func:`_imitation.worker_cache`); a cell
+    whose config has ``curve = [points, episodes]`` also keeps ``eval_curve``."""
     c = cell.config
     b = _im.sized_budget(c)
     _im.check_config(cell, _dc_json(b, cell.seed, c["overrides"]))
     feats: dict = {}
+    starts = _im.worker_cache(("dc", b.il_demos, b.bc_max_epochs, b.il_eval_episodes))
     row = _bench.run_one(cell.task, cell.seed, b, _common.reference(needs),
-                         config_overrides=c["overrides"] or None, features=feats)
+                         config_overrides=c["overrides"] or None, features=feats,
+                         bc_cache=starts, curve=c.get("curve"))
     named = {("BC" if "__BC__" in k else "DC"): v for k, v in feats.items()}
     start, final = row.pop("bc"), row.pop("dc")
     return {"start": {k: start[k] for k in start if k != "seconds"},

@@ -13,8 +13,9 @@ NAME = "gail_lr"
 
 
 def cells_at(b):
-    return [gail_cell(NAME, _im.LR_TASK, s, b, lr=lr, steps=b.lr_sweep_steps, variant=f"lr={lr:g}", n_demos=_im.ABLATION_DEMOS)
-            for lr in b.lr_sweep_lrs for s in b.seeds_for(_im.LR_TASK)]
+    return [gail_cell(NAME, _im.LR_TASK, s, b, lr=lr, steps=b.lr_sweep_steps, variant=f"lr={lr:g}", n_demos=_im.ABLATION_DEMOS,
+                      curve=_im.ablation_curve(b))
+            for s in b.seeds_for(_im.LR_TASK) for lr in b.lr_sweep_lrs]   # seed-major
 
 
 STUDY = cells.Study(NAME, "GAIL's final return per learning rate (Figure 4)", cells=cells_at,

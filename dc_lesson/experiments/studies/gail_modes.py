@@ -17,9 +17,12 @@ from dc_lesson.experiments.studies import _common, _imitation as _im
 NAME = "gail_modes"
 
 
-def gail_cell(study, task, seed, b, *, lr=None, steps=None, variant="", n_demos=None):
+def gail_cell(study, task, seed, b, *, lr=None, steps=None, variant="", n_demos=None,
+              curve=None):
     cfg = _im.without_seed(gail_config(int(steps or b.il_steps), seed, lr=lr).to_dict())
     extra = {} if lr is None else {"lr": float(lr)}
+    if curve is not None:
+        extra["curve"] = [int(curve[0]), int(curve[1])]
     if n_demos is not None:
         b = dataclasses.replace(b, il_demos=int(n_demos))
     return _im.learner_cell(study, "gail", task, seed, b, cfg, variant=variant, steps=steps,
@@ -27,7 +30,9 @@ def gail_cell(study, task, seed, b, *, lr=None, steps=None, variant="", n_demos=
 
 
 def run_gail(cell, needs):
-    """One GAIL cell: warm start, GAIL, both evaluated (any GAIL study's cells)."""
+    """One GAIL cell: warm start, GAIL, both evaluated (any GAIL study's cells).  The seed's
+    start and its evaluation are trained once per worker (:func:`_imitation.worker_cache`); a
+    cell whose config has ``curve = [points, episodes]`` also keeps ``eval_curve``."""
     c = cell.config
     cfg = gail_config(c["steps"], cell.seed, lr=c.get("lr"))
     _im.check_config(cell, cfg.to_dict())
@@ -35,7 +40,10 @@ def run_gail(cell, needs):
                                 eval_episodes=c["eval_episodes"],
                                 reference=_common.reference(needs),
                                 bc_max_epochs=c["bc_max_epochs"], config=cfg,
-                                eval_seed=c["eval_seed"])
+                                eval_seed=c["eval_seed"], curve=c.get("curve"),
+                                bc_cache=_im.worker_cache(
+                                    ("gail", c["n_demos"], c["bc_max_epochs"],
+                                     c["eval_episodes"], c["eval_seed"])))
     result = {"start": row.pop("BC"), "final": row.pop("GAIL"), **row}
     return result, _common.features(feats, cell.seed)
 

@@ -94,10 +94,6 @@ def cells_at(b) -> list[cells.Cell]:
         b.table3_eval_episodes)
 
 
-def _checkpoints(total: int, points: int) -> list[int]:
-    return [int(round(total * (i + 1) / points)) for i in range(points)]
-
-
 def run_cell(cell, needs):
     c = cell.config
     b = _budget.get(c["budget"])
@@ -119,21 +115,13 @@ def run_cell(cell, needs):
         start = _im.cached_start(   # the seed's warm start, shared by its six RL cells
             (cell.task, cell.n_demos, None, cell.seed, c["bc_max_epochs"], False),
             lambda: _bc.warm_start_policy(demos, cell.seed, max_epochs=c["bc_max_epochs"]))
-        curve, marks = [], _checkpoints(c["steps"], c["curve_points"]) if c["curve"] else []
-
-        def callback(row, policy):
-            steps = row.get("env_steps", row.get("steps"))
-            while marks and steps is not None and steps >= marks[0]:
-                marks.pop(0)
-                ev = evaluate(policy, c["curve_episodes"])
-                curve.append({"steps": int(steps), "scaled_return": ev["scaled_return"]})
-            return False
-
+        curve = _evaluation.CheckpointCurve(lambda p: evaluate(p, c["curve_episodes"]),
+                                            c["steps"], c["curve_points"])
         result = _algorithms.get(cell.learner).train(
             cell.task, demos, cfg, policy=copy.deepcopy(start), progress=False,
-            callback=callback if c["curve"] else None)
+            callback=curve if c["curve"] else None)
         if c["curve"]:
-            out["curve"] = curve
+            out["curve"] = curve.points
     out["train_seconds"] = time.perf_counter() - t0
     out["final"] = _im.protocol.measures_of(evaluate(result.policy, c["eval_episodes"]))
     return out, None
