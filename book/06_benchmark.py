@@ -118,6 +118,17 @@ display(pd.DataFrame(rows).set_index("budget"))
 # measure returns only and their floor is the 50 expert episodes measured when the
 # demonstrations were made (`study.fresh_reference`, `study.expert_manifest`): one episode's
 # spread, on the scaled axis.
+#
+# **What the planner tasks can measure.** A planner is not a policy a network can clone: at
+# every step it acts with the first action of the best of 64 random plans, started from its
+# own previous plan, so its action at a state is largely sampling noise and memory. BC from
+# all 25 of its demonstrations stays at the random level (the table below, from the grid's BC
+# cells), and every RL learner here starts from BC and is pulled towards the same
+# demonstrations. So on walker, ant and humanoid the grid runs BC on every row but the RL
+# learners on the first row only (seed 0, 4 demonstrations), where they were measured at the
+# random level too (`study.rl_cell_kept`; the docstring of `study` gives the numbers). Those
+# rows say so beneath Table III. An imitable expert for them (a network distilled from the
+# planner) is what the full rows would need.
 
 # %%
 display(pd.DataFrame(study.expert_manifest()).set_index("task").rename(columns={
@@ -140,6 +151,11 @@ else:
                                   values="scaled_return", aggfunc="first"))
     else:
         print("table3 is aggregated but no learner cell has run yet")
+reduced = (t3 or {}).get("reduced") or study.reduced_rows(BUDGET)
+if reduced:
+    display(Markdown("**Rows run with fewer cells** (never dropped silently):\n\n" + "\n".join(
+        f"- {r['task']}: {', '.join(r['learners'])} on {r['kept']} only; {r['why']}"
+        for r in reduced)))
 
 # %% [markdown]
 # The paper's Table III, as we read it: its header is lost in our copy and several rows'

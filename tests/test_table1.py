@@ -183,14 +183,22 @@ def test_the_single_mode_grid_has_every_learner_task_count_and_seed():
     from dc_lesson.experiments.studies import table3
     b = budget.get("lesson")
     grid = [c for c in table3.cells_at(b) if c.learner != "expert"]
-    assert len(grid) == (len(table3.TASKS) * len(b.bc_demo_counts) * b.table3_seeds
-                         * len(table3.LEARNERS))
+    planners = {"walker", "ant", "humanoid"}   # the sampling-planner experts
+    rl = len(table3.LEARNERS) - 1
+    full = len(b.bc_demo_counts) * b.table3_seeds
+    # BC on every row of every task; the RL learners on the planner tasks on one row only
+    assert len(grid) == (len(table3.TASKS) * full
+                         + (len(table3.TASKS) - len(planners)) * full * rl
+                         + len(planners) * rl)
+    for c in grid:
+        if c.task in planners and c.learner != "bc":
+            assert (c.seed, c.n_demos) == (0, min(b.bc_demo_counts))
+    assert {r["task"] for r in table3.reduced_rows(b)} == planners
     for c in grid:
         cfg = c.config
         assert cfg["curve"] == (c.n_demos == min(b.bc_demo_counts) and c.learner != "bc")
         assert cfg["steps"] == (0 if c.learner == "bc" else b.table3_steps_for(c.task))
     experts = [c for c in table3.cells_at(b) if c.learner == "expert"]
-    planners = {"walker", "ant", "humanoid"}   # the sampling-planner experts
     assert sorted({c.task for c in experts}) == sorted(set(table3.TASKS) - planners)
     for c in grid:   # a planner task reads no reference and computes no divergence
         assert c.config["divergences"] == (c.task not in planners)
