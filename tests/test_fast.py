@@ -58,6 +58,30 @@ def test_a_snapshot_follows_the_weights():
         np.testing.assert_allclose(after, pi(torch.from_numpy(obs)).numpy(), rtol=1e-5, atol=1e-5)
 
 
+@pytest.mark.parametrize("make", [fast.adamw, fast.adam])
+def test_a_snapshot_follows_the_learners_own_optimiser_steps(make):
+    """The learners' optimisers are PyTorch's fused kernels, which write the parameters
+    without bumping their version counters: a snapshot taken before a step must still be
+    retaken after it (GAIL's checkpoint evaluations once kept acting with the weights of the
+    first one).  The hook that bumps the counters leaves the fused update bit for bit."""
+    pi, twin = _trained_like(GaussianPolicy(6, 2)), _trained_like(GaussianPolicy(6, 2))
+    obs = np.random.default_rng(3).normal(size=(8, 6)).astype(np.float32)
+    opt = make(pi.parameters(), lr=1e-2)
+    plain = type(opt)(twin.parameters(), lr=1e-2, fused=True)   # no hook
+    before = fast.snapshot(pi)(obs)
+    for o, net in ((opt, pi), (plain, twin)):
+        o.zero_grad()
+        net(torch.from_numpy(obs)).pow(2).sum().backward()
+        o.step()
+    after = fast.snapshot(pi)(obs)
+    assert not np.allclose(before, after)
+    with torch.no_grad():
+        np.testing.assert_allclose(after, pi(torch.from_numpy(obs)).numpy(), rtol=1e-5,
+                                   atol=1e-5)
+    for p, q in zip(pi.parameters(), twin.parameters()):
+        assert torch.equal(p, q)
+
+
 def test_rollouts_and_batches_agree_on_either_path():
     """Mean-action episodes match to float tolerance; seeded stochastic batches repeat exactly
     on the fast path and agree with the torch path to float tolerance."""

@@ -22,6 +22,7 @@ import math
 
 import numpy as np
 import torch
+from torch.autograd.graph import increment_version
 
 _ENABLED = True
 
@@ -115,16 +116,37 @@ class GaussianSampler:
         return actions, logp.astype(np.float32)
 
 
+def _bump_versions(optimizer, args, kwargs) -> None:
+    # PyTorch's fused kernels write the parameters without bumping their version counters
+    # (measured with torch 2.13: a fused AdamW step leaves every ``_version`` as it was, a
+    # foreach or for-loop step bumps them).  :func:`snapshot` keys on those counters, so
+    # without this hook a policy snapshotted during training (an evaluation at a checkpoint)
+    # kept acting with the old weights for the rest of the run and in its final evaluation:
+    # GAIL, whose parameters change only through its optimiser, was evaluated as it stood at
+    # its first checkpoint.  Bumping after each step keeps the fused update bit for bit.
+    for group in optimizer.param_groups:
+        for p in group["params"]:
+            increment_version(p)
+
+
+def _fused(cls, params, kwargs):
+    opt = cls(params, fused=True if enabled() else None, **kwargs)
+    if enabled():
+        opt.register_step_post_hook(_bump_versions)
+    return opt
+
+
 def adamw(params, **kwargs) -> torch.optim.AdamW:
     """AdamW as every learner builds it: on the fast path PyTorch's fused CPU kernel (one
     kernel for all parameters instead of a Python loop over them: the same update, computed in
-    another order)."""
-    return torch.optim.AdamW(params, fused=True if enabled() else None, **kwargs)
+    another order), with the parameters' version counters bumped after each step (the fused
+    kernel leaves them, and :func:`snapshot` reads them)."""
+    return _fused(torch.optim.AdamW, params, kwargs)
 
 
 def adam(params, **kwargs) -> torch.optim.Adam:
     """Adam, likewise (GAIL's discriminator)."""
-    return torch.optim.Adam(params, fused=True if enabled() else None, **kwargs)
+    return _fused(torch.optim.Adam, params, kwargs)
 
 
 def clip_grad_norm_(params, max_norm: float) -> torch.Tensor:
