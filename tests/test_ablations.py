@@ -83,3 +83,78 @@ def test_an_ablation_cell_keeps_its_curve_and_the_same_numbers_from_a_cached_sta
     assert len(points) == smoke.ablation_curve_points
     steps = [p["steps"] for p in points]
     assert steps == sorted(steps) and all(np.isfinite(p["scaled_return"]) for p in points)
+
+
+# -- the claims' rules, on constructed records ------------------------------------------------
+
+from dc_lesson.experiments import ablations, claims   # noqa: E402
+
+
+def _obs(row, seed, ret, curve=None, gap=None, per_loop=None):
+    o = {"row": row, "task": "hopper", "n_demos": 11, "seed": seed, "scaled_return": ret}
+    if curve is not None:
+        o["eval_curve"] = [{"steps": 1000 * (i + 1), "scaled_return": v}
+                           for i, v in enumerate(curve)]
+    if gap is not None:
+        o["curve"], o["iterations"] = {"pi_pi_prime_l1": gap}, per_loop
+    return o
+
+
+def _recs(obs):
+    return {"ablation": {"observations": obs, "table": [], "cells": {}}}
+
+
+def test_the_ablation_measures_read_the_curves_they_name():
+    o = _obs("dc", 0, 1.0, curve=[0.2, 0.4, 0.9, 0.5, 0.9, 0.5])
+    assert ablations.early_return(o) == pytest.approx(0.5)        # steps <= half: 3 points
+    assert ablations.late_spread(o) == pytest.approx(np.std([0.5, 0.9, 0.5]))
+    shrinking = _obs("dc", 0, 1.0, gap=[4, 4, 3, 2, 1, 1, 1, 1] * 2, per_loop=8)
+    assert ablations.log_gap_ratio(shrinking) == pytest.approx(np.log(1 / 4))
+    assert ablations.log_gap_ratio(_obs("dc", 0, 1.0, gap=[2.0] * 8, per_loop=4)) == 0.0
+    assert ablations.early_return(_obs("dc", 0, 1.0)) is None     # no curve: no measure
+
+
+def test_the_worst_rate_needs_every_rate_of_the_seed():
+    obs = [_obs(f"dc-lr={lr}", s, r) for s in (0, 1) for lr, r in ((1e-4, 0.9), (1e-3, 0.2))]
+    obs = obs[:-1]                                   # seed 1 lost its 1e-3 cell
+    worst = ablations.worst_lr(obs, "dc")
+    assert worst == [{"task": "hopper", "seed": 0, "row": "dc", "worst_lr_return": 0.2}]
+
+
+def test_each_ablation_claim_can_be_reproduced_contradicted_or_left_open():
+    rng = np.random.default_rng(0)
+    seeds = range(6)
+    better = [_obs("dc-loops=4", s, 0.9 + 0.01 * rng.normal()) for s in seeds] + \
+             [_obs("dc-loops=1", s, 0.5 + 0.01 * rng.normal()) for s in seeds] + \
+             [_obs("dc-loops=1-long", s, 0.95 + 0.01 * rng.normal()) for s in seeds]
+    v = {x.claim: x.verdict for x in ablations.verdicts(_recs(better))}
+    assert v[ablations.LOOPS.name] == "reproduced"
+    assert v[ablations.EQUAL_BUDGET.name] == "contradicted"      # the long loop did better
+    null = [_obs(r, s, 0.7 + 0.1 * rng.normal()) for r in ("dc-loops=4", "dc-loops=1")
+            for s in seeds]
+    assert {x.claim: x.verdict for x in ablations.verdicts(_recs(null))}[
+        ablations.LOOPS.name] == "inconclusive"
+    few = better[:3] + better[6:9]                   # three seeds: too few, whatever the gap
+    assert {x.claim: x.verdict for x in ablations.verdicts(_recs(few))}[
+        ablations.LOOPS.name] == "inconclusive"
+
+
+def test_figure_5_and_6_claims_compare_the_default_rates_and_the_copies_gap():
+    seeds = range(5)
+    dc_c, gail_c = [0.9, 0.95, 1.0, 1.0, 1.0, 1.0], [0.5, 0.3, 0.6, 0.2, 0.9, 0.1]
+    obs = ([_obs("dc-lr=0.0003", s, 1.0, curve=[c - 0.01 * s for c in dc_c]) for s in seeds]
+           + [_obs("gail-lr=0.0003", s, 0.5, curve=[c + 0.01 * s for c in gail_c])
+              for s in seeds]
+           + [_obs("dc-lr=0.001", s, 0.0, curve=[0.0] * 6) for s in seeds]   # not the default
+           + [_obs("dc", s, 1.0, gap=[3, 3, 2, 1] * 2, per_loop=4) for s in seeds])
+    v = {x.claim: x for x in ablations.verdicts(_recs(obs))}
+    assert v[ablations.FASTER.name].verdict == "reproduced"
+    assert v[ablations.STABLE.name].verdict == "reproduced"
+    assert v[ablations.CONVERGES.name].verdict == "reproduced"
+    assert all(c.measure and len(c.reason) > 40 for c in ablations.CLAIMS)
+
+
+def test_stored_verdicts_take_the_ablations_from_the_hopper_studies():
+    names = {v.claim for v in claims.verdicts()}
+    assert {c.name for c in ablations.CLAIMS} <= names
+    assert claims.CONVERGES.name not in names        # the Table I-era convergence rule

@@ -313,8 +313,11 @@ def verdicts(obs=None, reference_shares=None, source: str = "",
              eval_episodes: int = 50, actions: str = "mean") -> list[Verdict]:
     """Every claim, judged (module docstring); from the stored results by default: the
     multi-mode claims from the ``table1`` study once it has cells (its ``actions``
-    evaluation), the loop and learning-rate claims from their own studies."""
-    if obs is None:
+    evaluation), the ablations' (loops, learning rates, Figure 5 on deterministic
+    evaluations, convergence) from the hopper studies (:func:`ablations.verdicts`).  Given
+    ``obs``, every claim of :data:`CLAIMS` is judged on those observations alone."""
+    stored = obs is None
+    if stored:
         obs, reference_shares, source = observations()
         t1 = table1_observations(actions)
         if t1 is not None:
@@ -344,6 +347,10 @@ def verdicts(obs=None, reference_shares=None, source: str = "",
     conv = [{**o, "row": "zero", "log_change_ratio": 0.0} for o in obs if o["row"] == "dc"]
     out.append(judge_claim(CONVERGES, obs + conv, multi, measure=lambda o: (
         0.0 if o["row"] == "zero" else log_change_ratio(o)), note=source))
+    if stored:   # the ablations (Figures 3-6) are the hopper studies' own (chapter 06)
+        from dc_lesson.experiments import ablations
+        replaced = (LOOPS.name, LR_ROBUST.name, CONVERGES.name)
+        out = [v for v in out if v.claim not in replaced] + ablations.verdicts()
     return out
 
 

@@ -112,6 +112,8 @@ def observations(records, start_row: str = "bc") -> list[dict]:
             seen.add(key)
             obs.append(_agg.observation(r, res["start"], row=start_row))
         extra = {"curve": res.get("curve")}
+        if res.get("eval_curve") is not None:   # deterministic evaluations (Figure 5)
+            extra["eval_curve"] = res["eval_curve"]
         if "config" in res:   # DC: the iterations per loop, for the convergence claim
             extra["iterations"] = res["config"]["iterations"]
         obs.append(_agg.observation(r, res["final"], **extra))

@@ -1,0 +1,245 @@
+"""The paper's ablations on Hopper (Figures 3-6), read from their cell aggregates.
+
+Three studies, each a grid of cells on ``hopper`` with 11 demonstrations (the paper's setting)
+and the seeds of ``budget.seeds_for("hopper")``, every RL run from the seed's BC warm start:
+
+* ``dc_ablation.json``: rows ``dc-loops=L`` (L = 1..4 loops of one fixed number of
+  iterations), ``dc-loops=1-long`` (one loop as long as L = 4: the same interactions),
+  ``dc-update=admm`` (consensus ADMM) and ``dc`` (the defaults: two loops, averaging);
+* ``dc_lr.json`` and ``gail_lr.json``: rows ``dc-lr=X`` and ``gail-lr=X``, one learning rate
+  for every optimiser of the learner, ``budget.lr_sweep_steps`` interactions each.
+
+Every cell keeps a deterministic evaluation curve (``eval_curve``: mean-action episodes at
+evenly spaced checkpoints) and DC's cells their per-iteration log (``curve``: the L1 distance
+between pi and pi' before averaging, the change of pi's parameters, ADMM's residuals).
+
+The claims are declared here, before any result is read, each with one measure per seed and
+one paired comparison, and judged by :func:`claims.judge_claim` (paired 95% interval:
+*reproduced*, *contradicted* or *inconclusive*; fewer than ``claims.MIN_SEEDS`` seeds is
+inconclusive).  Where the paper's comparison is confounded we judge the confound too:
+Figure 3 compares L = 4 with L = 1 at four times the interactions, so :data:`EQUAL_BUDGET`
+asks whether the loops or the interactions did it.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from dc_lesson.experiments import claims as _claims
+from dc_lesson.storage import read_result
+
+TASK = "hopper"
+FILES = {"ablation": "dc_ablation.json", "dc_lr": "dc_lr.json", "gail_lr": "gail_lr.json"}
+DEFAULT_LR = 3e-4        # DC's and GAIL's own rate: the pair Figure 5 compares
+EARLY = 0.5              # Figure 5: the first half of the interactions
+LOOP_ROWS = ("dc-loops=1", "dc-loops=2", "dc-loops=3", "dc-loops=4", "dc-loops=1-long")
+
+LOOPS = _claims.Claim(
+    "DC improves with more P_w loops", "Figure 3", "scaled_return", "dc-loops=4",
+    "dc-loops=1", +1, "the figure's two ends, paired by seed; L = 4 also has four times L = "
+    "1's interactions, so EQUAL_BUDGET is judged beside it")
+EQUAL_BUDGET = _claims.Claim(
+    "More loops beat one loop of the same length", "Figure 3 (our control)", "scaled_return",
+    "dc-loops=4", "dc-loops=1-long", +1,
+    "the same interactions and iterations in one loop: what the refits themselves add")
+LR_ROBUST = _claims.Claim(
+    "DC is robust to the learning rate; GAIL is not", "Figure 4", "worst_lr_return", "dc",
+    "gail", +1, "robustness is the worst case: per seed, the lowest final scaled return over "
+    "the sweep's rates, DC against GAIL (same warm start per seed)")
+FASTER = _claims.Claim(
+    "DC reaches a higher return than GAIL with few interactions (Hopper, deterministic "
+    "evaluations)", "Figure 5", "early_return",
+    "dc", "gail", +1, "per seed, the mean scaled return of the deterministic evaluations in "
+    "the first half of the interactions, both at their default rate 3e-4 (the lr sweeps' "
+    "cells: same start, same interactions); deterministic, so exploration noise is no factor")
+STABLE = _claims.Claim(
+    "DC is more stable than GAIL (Hopper, deterministic evaluations)", "Figure 5",
+    "late_spread", "dc", "gail", -1,
+    "per seed, the standard deviation of the deterministic evaluations over the second half "
+    "of the interactions (a run that keeps jumping is not stable), at the default rate")
+CONVERGES = _claims.Claim(
+    "The ADMM update converges: pi and pi' agree more as a loop goes on", "Figure 6",
+    "log_gap_ratio", "dc", "zero", -1, "per seed, the mean over loops of log(last quarter / "
+    "first quarter) of the L1 distance between pi and pi' before averaging: negative when "
+    "the two copies come together (the raw parameter-change ratio shows only 'not diverging')")
+CLAIMS = (LOOPS, EQUAL_BUDGET, LR_ROBUST, FASTER, STABLE, CONVERGES)
+
+
+def load() -> dict:
+    """The three aggregates that exist in the cell format ({} for one not yet aggregated)."""
+    out = {}
+    for key, name in FILES.items():
+        try:
+            rec = read_result(name)
+        except FileNotFoundError:
+            continue
+        if "observations" in rec and "cells" in rec:    # not a pre-cell whole-grid file
+            out[key] = rec
+    return out
+
+
+def observations(recs: dict) -> list[dict]:
+    """All learner observations of the three studies (the BC starts once per seed)."""
+    obs, starts = [], set()
+    for rec in recs.values():
+        for o in rec["observations"]:
+            if o["row"] == "expert":
+                continue
+            if o["row"] == "bc":
+                if o["seed"] in starts:
+                    continue
+                starts.add(o["seed"])
+            obs.append(o)
+    return obs
+
+
+def lr_of(row: str) -> float | None:
+    return float(row.split("-lr=")[1]) if "-lr=" in row else None
+
+
+# -- per-seed measures --------------------------------------------------------------------------
+
+def _curve_points(o) -> tuple[np.ndarray, np.ndarray] | None:
+    pts = o.get("eval_curve") or []
+    if not pts:
+        return None
+    return (np.array([p["steps"] for p in pts], float),
+            np.array([p["scaled_return"] for p in pts], float))
+
+
+def early_return(o) -> float | None:
+    c = _curve_points(o)
+    if c is None:
+        return None
+    steps, ret = c
+    keep = steps <= EARLY * steps.max()
+    return float(ret[keep].mean()) if keep.any() else None
+
+
+def late_spread(o) -> float | None:
+    c = _curve_points(o)
+    if c is None:
+        return None
+    steps, ret = c
+    keep = steps > EARLY * steps.max()
+    return float(ret[keep].std()) if keep.sum() >= 2 else None
+
+
+def log_gap_ratio(o, key: str = "pi_pi_prime_l1") -> float | None:
+    """Mean over loops of log(last quarter / first quarter) of ``key`` per iteration."""
+    c = (o.get("curve") or {}).get(key)
+    per_loop = o.get("iterations")
+    if not c or not per_loop:
+        return None
+    x = np.asarray([np.nan if v is None else v for v in c], np.float64)
+    ratios = []
+    for start in range(0, len(x), per_loop):
+        seg = x[start:start + per_loop]
+        q = max(1, len(seg) // 4)
+        first, last = np.nanmean(seg[:q]), np.nanmean(seg[-q:])
+        if np.isfinite(first) and np.isfinite(last) and first > 0 and last > 0:
+            ratios.append(np.log(last / first))
+    return float(np.mean(ratios)) if ratios else None
+
+
+def worst_lr(obs, learner: str) -> list[dict]:
+    """Per seed, the lowest final scaled return over ``learner``'s rates (all four needed)."""
+    rows = [o for o in obs if o["row"].startswith(learner + "-lr=")]
+    rates = {o["row"] for o in rows}
+    by_seed: dict = {}
+    for o in rows:
+        by_seed.setdefault(o["seed"], []).append(o["scaled_return"])
+    return [{"task": TASK, "seed": s, "row": learner, "worst_lr_return": float(min(v))}
+            for s, v in by_seed.items() if len(v) == len(rates)]
+
+
+def at_default_lr(obs) -> list[dict]:
+    """The DC and GAIL cells at their default rate, renamed ``dc`` and ``gail``."""
+    out = []
+    for o in obs:
+        lr = lr_of(o["row"])
+        if lr is not None and np.isclose(lr, DEFAULT_LR):
+            out.append({**o, "row": o["row"].split("-lr=")[0]})
+    return out
+
+
+def verdicts(recs: dict | None = None) -> list[_claims.Verdict]:
+    """Each claim of :data:`CLAIMS`, judged on the stored aggregates (or ``recs``)."""
+    recs = load() if recs is None else recs
+    obs = observations(recs)
+    out = [_claims.judge_claim(LOOPS, obs, [TASK]),
+           _claims.judge_claim(EQUAL_BUDGET, obs, [TASK])]
+    out.append(_claims.judge_claim(LR_ROBUST, worst_lr(obs, "dc") + worst_lr(obs, "gail"),
+                                   [TASK]))
+    default = at_default_lr(obs)
+    out.append(_claims.judge_claim(FASTER, default, [TASK], measure=early_return))
+    out.append(_claims.judge_claim(STABLE, default, [TASK], measure=late_spread))
+    dc = [o for o in obs if o["row"] == "dc"]
+    zero = [{**o, "row": "zero"} for o in dc]
+    out.append(_claims.judge_claim(CONVERGES, dc + zero, [TASK], measure=lambda o: (
+        0.0 if o["row"] == "zero" else log_gap_ratio(o))))
+    return out
+
+
+# -- what the chapter draws ---------------------------------------------------------------------
+
+def rows_table(recs: dict, rows=None) -> list[dict]:
+    """Per row: seeds, final scaled return (mean and 95% interval), interactions per run."""
+    from dc_lesson.experiments.report import fmt
+    out = []
+    for rec in recs.values():
+        steps = {}
+        for o in rec["observations"]:
+            c = o.get("curve") or {}
+            s = c.get("env_steps") or c.get("steps")
+            if s:
+                steps.setdefault(o["row"], set()).add(int(s[-1]))
+        for r in rec["table"]:
+            if r["task"] != TASK or (rows and r["row"] not in rows) or r["row"] == "expert":
+                continue
+            out.append({"row": r["row"], "seeds": r["n_seeds"],
+                        "scaled return": fmt(r["scaled_return_mean"], r["scaled_return_lo"],
+                                             r["scaled_return_hi"], 2),
+                        "interactions": (f"{max(steps[r['row']]):,}" if r["row"] in steps
+                                         else "-")})
+    seen, unique = set(), []
+    for r in out:                       # the BC start appears in each study once
+        if r["row"] not in seen:
+            seen.add(r["row"])
+            unique.append(r)
+    return unique
+
+
+def lr_lines(recs: dict) -> dict:
+    """``{learner: (rates, mean, lo, hi)}`` of the final scaled return against the rate."""
+    out = {}
+    for key, learner in (("dc_lr", "dc"), ("gail_lr", "gail")):
+        rows = sorted((lr_of(r["row"]), r) for r in recs.get(key, {}).get("table", [])
+                      if r["row"].startswith(learner + "-lr="))
+        if rows:
+            out[learner] = tuple(np.array(v, float) for v in zip(*[
+                (lr, r["scaled_return_mean"], r["scaled_return_lo"], r["scaled_return_hi"])
+                for lr, r in rows]))
+    return out
+
+
+def eval_curves(obs, row: str) -> tuple[np.ndarray, np.ndarray] | None:
+    """(steps, per-seed scaled returns) of ``row``'s deterministic evaluation curves, on the
+    checkpoints all its seeds share (the same marks; steps rounded to whole batches)."""
+    curves = [_curve_points(o) for o in obs if o["row"] == row]
+    curves = [c for c in curves if c is not None]
+    if not curves:
+        return None
+    n = min(len(c[0]) for c in curves)
+    return curves[0][0][:n], np.array([c[1][:n] for c in curves])
+
+
+def gap_traces(obs, row: str = "dc", key: str = "pi_pi_prime_l1") -> list[np.ndarray]:
+    """Per seed, ``key`` per iteration (pi-pi' distance, or an ADMM residual)."""
+    return [np.asarray([np.nan if v is None else v for v in o["curve"][key]], float)
+            for o in obs if o["row"] == row and key in (o.get("curve") or {})]
+
+
+__all__ = ["CLAIMS", "CONVERGES", "EQUAL_BUDGET", "FASTER", "LOOPS", "LR_ROBUST", "STABLE",
+           "at_default_lr", "early_return", "eval_curves", "gap_traces", "late_spread", "load",
+           "log_gap_ratio", "lr_lines", "observations", "rows_table", "verdicts", "worst_lr"]
