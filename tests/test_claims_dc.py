@@ -61,5 +61,3 @@ def test_chapter04_verdicts_from_the_three_seed_files_decide_nothing():
     for v in claims.verdicts(*claims.observations()):
         assert {p[1] for p in v.per_task} <= {"inconclusive"}, v.claim
         assert all(p[5] < claims.MIN_SEEDS for p in v.per_task)
-    gail_lr = {s["lr"]: s["scaled_return_mean"] for s in read_result("gail_lr.json")["summary"]}
-    assert gail_lr[3e-4] < gail_lr[1e-4] - 0.3        # GAIL already falls at 3e-4

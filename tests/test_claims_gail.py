@@ -1,5 +1,6 @@
 """Claims chapter 02 (book/02_gail.py) makes about stored results, checked against the files
-data/results/gail_modes.json (+ .npz) and data/results/gail_lr.json."""
+data/results/gail_modes.json (+ .npz); the learning-rate sweep is a cell study now
+(tests/test_ablations.py checks its rules)."""
 
 import numpy as np
 import pytest
@@ -181,42 +182,6 @@ def test_features_file_holds_every_run_subsampled(modes):
             for s in modes["seeds"]:
                 x = f[bench_gail.feature_key(t, m, s)]
                 assert x.dtype == np.float32 and 0 < len(x) <= bench_gail.FEATURES_PER_RUN
-
-
-# -- the learning-rate sweep (data/results/gail_lr.json) ----------------------------------------
-
-@pytest.fixture(scope="module")
-def lr():
-    return read_result("gail_lr.json")
-
-
-def test_the_sweep_is_the_lesson_run_the_chapter_describes(lr):
-    assert lr["budget"] == "lesson" and lr["task"] == "halfcheetah" and lr["seeds"] == [0, 1]
-    assert lr["lrs"] == [1e-4, 3e-4, 1e-3, 3e-3] and lr["steps"] == 150_000
-    assert lr["eval_episodes"] == 50 and len(lr["runs"]) == 8
-    assert round(lr["wall_seconds"] / 60) == 10                      # "10 minutes"
-
-
-def test_gail_does_not_keep_the_near_expert_start_at_any_learning_rate(lr):
-    assert round(lr["bc"]["scaled_return_mean"], 2) == 0.97
-    s = {r["lr"]: (round(r["scaled_return_mean"], 2), round(r["scaled_return_std"], 2))
-         for r in lr["summary"]}
-    assert s == {1e-4: (0.73, 0.07), 3e-4: (0.26, 0.21), 1e-3: (0.23, 0.02),
-                 3e-3: (0.34, 0.01)}
-    best = max(lr["summary"], key=lambda r: r["scaled_return_mean"])
-    assert best["lr"] == 1e-4 and best["scaled_return_mean"] < lr["bc"]["scaled_return_mean"]
-    higher = [r["scaled_return"] for r in lr["runs"] if r["lr"] >= 3e-4]
-    assert (round(min(higher), 2), round(max(higher), 2)) == (0.12, 0.41)
-    top = next(r for r in lr["summary"] if r["lr"] == 3e-3)["scaled_return_mean"]
-    mids = [r["scaled_return_mean"] for r in lr["summary"] if r["lr"] in (3e-4, 1e-3)]
-    assert top > max(mids)                       # "the largest rate did no worse"
-    mid_seeds = sorted(round(r["scaled_return"], 2) for r in lr["runs"] if r["lr"] == 3e-4)
-    assert mid_seeds == [0.12, 0.41]
-
-
-def test_the_discriminator_wins_in_every_sweep_run(lr):
-    acc = [r["acc_learner_final"] for r in lr["runs"]]
-    assert round(min(acc), 2) == 0.95 and round(max(acc), 2) == 1.0
 
 
 # -- the benchmark rerun at lr 1e-4 (data/results/gail_modes_lr1e-4.json) -----------------------
