@@ -323,6 +323,17 @@ if t1 is not None:
 from dc_lesson.experiments import ablations
 
 abl = ablations.load()
+
+
+def legend_or_note(ax, note="not run yet: its cells have not been aggregated"):
+    """A legend if the panel drew anything, else a note saying why it is empty."""
+    if ax.get_legend_handles_labels()[0]:
+        ax.legend(fontsize=7)
+    else:
+        ax.text(0.5, 0.5, note, ha="center", va="center", transform=ax.transAxes, fontsize=8,
+                color="0.4", wrap=True)
+
+
 if not abl:
     print("the ablations have not been aggregated yet: dc-lesson sweep dc_ablation && "
           "dc-lesson aggregate dc_ablation (and dc_lr, gail_lr; --partial for what has run)")
@@ -349,7 +360,7 @@ if abl:
                   fontsize=7)
     ax.set_ylabel("final scaled return")
     ax.set_title("Figure 3: loops (dots: seeds, bar: mean)", fontsize=9)
-    ax.legend(fontsize=7)
+    legend_or_note(ax)
     ax = axes[1]   # Figure 4: final return against the learning rate
     for learner, (lrs, mean, lo, hi) in ablations.lr_lines(abl).items():
         ax.plot(lrs, mean, "o-", color=COLOURS[learner], label=learner)
@@ -360,7 +371,7 @@ if abl:
     ax.set_xscale("log")
     ax.set_xlabel("learning rate")
     ax.set_title("Figure 4: final return, 95% intervals", fontsize=9)
-    ax.legend(fontsize=7)
+    legend_or_note(ax)
     ax = axes[2]   # Figure 5: deterministic evaluations at the default rate
     for row, learner in (("dc-lr=0.0003", "dc"), ("gail-lr=0.0003", "gail")):
         c = ablations.eval_curves(abl_obs, row)
@@ -374,7 +385,7 @@ if abl:
     ax.set_xlabel("interactions")
     ax.set_title("Figure 5: mean action at checkpoints (lr 3e-4); band: range",
                  fontsize=9)
-    ax.legend(fontsize=7)
+    legend_or_note(ax, "DC's and GAIL's cells at lr 3e-4 have not both run yet")
     fig.tight_layout()
     plt.show()
 
@@ -390,13 +401,15 @@ if abl:
     axes[0].set_ylabel("‖π − π′‖₁ before averaging")
     axes[0].set_title("Figure 6: the copies' distance, DC's defaults (each seed a line)",
                       fontsize=9)
+    if not axes[0].lines:
+        legend_or_note(axes[0], "DC's default cells have not run yet")
     for key, colour in (("primal_residual", "tab:purple"), ("dual_residual", "tab:olive")):
         for i, trace in enumerate(ablations.gap_traces(abl_obs, "dc-update=admm", key)):
             axes[1].semilogy(trace, color=colour, alpha=0.6, lw=0.8,
                              label=key.replace("_", " ") if i == 0 else None)
     axes[1].set_xlabel("iteration")
     axes[1].set_title("consensus ADMM: residuals (each seed a line)", fontsize=9)
-    axes[1].legend(fontsize=7)
+    legend_or_note(axes[1], "the consensus ADMM cells have not run yet")
     fig.tight_layout()
     plt.show()
 
