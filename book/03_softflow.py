@@ -35,18 +35,20 @@
 # 6. reads the stored speed benchmark of our `log_prob` against a naive implementation;
 # 7. lists what the paper left open and what we chose.
 #
-# The stored results come from one command, run at the `lesson` budget:
+# The stored results are the cells of one study, run at the `lesson` budget:
 #
 # ```
-# dc-lesson bench softflow-fit --out data/results/softflow_fit.json
+# dc-lesson sweep softflow_fit && dc-lesson aggregate softflow_fit
 # ```
 #
-# It writes `data/results/softflow_fit.json` (every number quoted below, with the command,
-# seeds, budget and git revision) and `data/results/softflow_fit.npz` (the arrays behind the
-# figures). It took about 12 minutes on one thread of a shared 2-core
-# machine. This chapter itself took about 2.5 minutes at `lesson` on the same machine (its
-# last cell prints the time; it trains three small flows live) and well under a minute at
-# `smoke`.
+# Each toy flow, each task flow and each task's data (its split, the Gaussian and KDE
+# baselines) is a cell under `data/results/cells/softflow_fit/` (a JSON record with its
+# command, seed, budget and git revision, and an `.npz` of the arrays behind the figures);
+# the aggregate `data/results/softflow_fit_cells.json` holds every number quoted below, and
+# `studies.softflow_fit.fit_record` reads the two back. The first cell below prints
+# how long the cells took on one core. This chapter itself takes a few minutes at `lesson`
+# (its last cell prints the time; it trains three small flows live) and well under a minute
+# at `smoke`.
 
 # %%
 import time
@@ -55,26 +57,27 @@ import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
 import torch
-from IPython.display import display
+from IPython.display import Markdown, display
 
 from dc_lesson.experiments import softflow as bench_softflow
+from dc_lesson.experiments.studies import softflow_fit as softflow_fit_study
 from dc_lesson import notebook
 from dc_lesson.density import softflow
-from dc_lesson.storage import RESULTS, read_result
+from dc_lesson.storage import read_result
 
 BUDGET = notebook.start(
     "the flows trained live below take a handful of gradient steps and every number and "
-    "picture they give means nothing. The stored results (data/results/softflow_fit.json, "
+    "picture they give means nothing. The stored results (data/results/softflow_fit_cells.json, "
     "bench_softflow.json) are read, not recomputed, so their tables and figures are the "
     "real ones.")
 CHAPTER_START = time.perf_counter()
 print({k: v for k, v in vars(BUDGET).items() if k.startswith("softflow_")})
 
-FIT = read_result("softflow_fit.json")
-FIT_ARRAYS = bench_softflow.load_fit_arrays(RESULTS / "softflow_fit.json")
-print(f"stored: {FIT['command']}\n  budget {FIT['budget']}, seeds {FIT['seeds']}, revision "
-      f"{FIT['revision']}, {FIT['time']}, {FIT['wall_seconds'] / 60:.1f} min on "
-      f"{FIT['threads']} thread")
+# The study's cells, aggregated, and the arrays of their features (densities, samples).
+FIT, FIT_ARRAYS = softflow_fit_study.fit_record(read_result("softflow_fit_cells.json"))
+print(f"stored: {FIT['command']}\n  {FIT['cells']['n']} cells, budget {FIT['budget']}, seeds "
+      f"{FIT['seeds']}, aggregated {FIT['time']}; {FIT['wall_seconds'] / 60:.1f} min of one "
+      f"core in all")
 
 # %% [markdown]
 # ## Change of variables
@@ -204,8 +207,8 @@ draw_densities([(r["model"], r["density"]) for r in live], live[0]["grid"],
 # ### The stored comparison, three seeds
 #
 # The table is the held-out negative log-likelihood (nats per point, lower is better), mean
-# and standard deviation over the seeds, read from `data/results/softflow_fit.json`
-# (`toy.summary`); the images are the stored seed-0 densities (`softflow_fit.npz`).
+# and standard deviation over the seeds, read from the study's cells
+# (`toy.summary`); the images are the stored seed-0 densities (the toy cells' features).
 
 # %%
 toy = FIT["toy"]
@@ -241,9 +244,9 @@ fig.tight_layout()
 plt.show()
 
 # %% [markdown]
-# What the stored run shows (`data/results/softflow_fit.json`, keys `toy.summary`,
+# What the stored cells show (`fit_record`: keys `toy.summary`,
 # `toy.cnf_minus_softflow` and `toy.runs[*].heldout_curve`, and the seed-0 images in
-# `softflow_fit.npz`; `tests/test_claims_softflow.py` checks every statement below against
+# the toy cells' features; `tests/test_claims_softflow.py` checks every statement below against
 # those files):
 #
 # * **Off the circle SoftFlow wins on every seed.** At noise std 0.05 its held-out NLL is
@@ -367,20 +370,38 @@ print("held-out NLL (nats per state), stored:")
 display(pd.DataFrame(nll_table).T.round(2))
 
 # %% [markdown]
-# From the stored run (`data/results/softflow_fit.json`: `tasks.*.runs`, `tasks.*.kde`,
-# `tasks.*.gaussian`, `tasks.*.data_at_mode_shares`):
-#
-# * On both tasks SoftFlow fits the held-out demonstrations far better than the two classical
-#   estimates of the same states: held-out NLL −17.6 nats on `reacher4` (KDE −6.2, Gaussian
-#   0.8) and 7.6 on `halfcheetah2` (KDE 10.5, Gaussian 17.9).
-# * Neither fit had converged: on both tasks the held-out NLL was still falling at the last
-#   checkpoint (by about 0.9 nats on each over the last 100 steps). 1000 steps is the
-#   `lesson` budget; the `paper` budget takes 4000, which we have not run.
-# * `reacher4`'s numbers are so low because its states are almost points: the arm reaches its
-#   target early in the episode and then rests there, still, so 98% of its training states
-#   lie within 2 cm of a target. The density of repeated points is unbounded, and every
-#   estimate gains by concentrating there.
-#
+# What the stored cells say about the fits (rendered from `fit_record`: `tasks.*.runs`,
+# `tasks.*.kde`, `tasks.*.gaussian`, `tasks.*.data_at_mode_shares`):
+
+# %%
+def compare(a, b):
+    return "better" if a < b else "worse"
+
+
+lines = []
+for task in TASKS:
+    t, run = FIT["tasks"][task], main_run(task)
+    flow, kde, gauss = (x["clean"] for x in (run["heldout_nll"], t["kde"]["heldout_nll"],
+                                             t["gaussian"]["heldout_nll"]))
+    c = run["heldout_curve"]
+    step = c["clean"][-2] - c["clean"][-1]
+    lines.append(
+        f"* **`{task}`**: SoftFlow's held-out NLL is {flow:.1f} nats per state, "
+        f"{compare(flow, kde)} than the KDE's {kde:.1f} and {compare(flow, gauss)} than the "
+        f"Gaussian's {gauss:.1f} on the same training states. Over the last "
+        f"{c['iteration'][-1] - c['iteration'][-2]} of its {c['iteration'][-1]} steps it "
+        + (f"still fell by {step:.1f} nats: the fit had not converged (the `paper` budget "
+           f"takes 4000 steps, which we have not run)." if step > 0.05 else
+           f"changed by {step:+.1f} nats: about flat."))
+r4 = FIT["tasks"]["reacher4"]
+lines.append(
+    f"* `reacher4`'s states are almost points: the arm reaches its target early and rests "
+    f"there, so {sum(r4['data_at_mode_shares']):.0%} of its states lie within "
+    f"{r4['at_mode_tolerance'] * 100:.0f} cm of a target. The density of repeated points is "
+    f"unbounded, and every estimate gains by concentrating there.")
+display(Markdown("\n".join(lines)))
+
+# %% [markdown]
 # ### Does every mode get density? (stored)
 
 # %%
@@ -423,26 +444,44 @@ fig.tight_layout()
 plt.show()
 
 # %% [markdown]
-# The stored answers (`data/results/softflow_fit.json`: `tasks.*.runs[*].mode_logp`,
-# `transit_logp`, `sample_mode_shares`, `sample_at_mode_shares` and `feature_kde_samples`,
-# against the same keys of `kde` and the `data_*` keys):
-#
-# * **Every mode gets high density.** On `reacher4` the mean log P(s) of the held-out states
-#   at each of the four targets is between 14.7 and 24.0 for SoftFlow (the KDE: 6.2 to 7.9),
-#   the rarest target (yellow, 5% of the states) included, against −3.4 for the states in
-#   transit between them. On `halfcheetah2` the flow gives the states of the backward run
-#   −2.9 and those of the forward run −10.4 (the KDE: −9.5 and −10.9), both above the −16.2
-#   of the states in transit (accelerating from rest). The flow favours the backward
-#   direction, the one with 61% of the states, by 7.5 nats per state; the KDE by 1.4.
-# * **But the flow's samples do not look like the data.** Sampled states fall to the nearest
-#   target or running direction in roughly the data's proportions (`reacher4`: 16/25/49/10%
-#   of the samples against 19/28/48/5% of the states; `halfcheetah2`: 27% running forward
-#   against 39%), yet few land *at* a mode: within 2 cm of a target for 3% of the samples
-#   against 98% of the demonstration states, and within 1.5 m/s of either running speed for
-#   27% against 84%. The right panel shows it for the cheetah: the data's forward velocity has
-#   two sharp peaks, at −6.0 and +8.6 m/s; the samples' is one broad hump peaking near
-#   −4 m/s. The flow puts its highest density on each mode but spends most of its mass
-#   between them.
+# The stored answers (rendered from `fit_record`: `tasks.*.runs[*].mode_logp`,
+# `transit_logp`, `sample_mode_shares`, `sample_at_mode_shares`, against the same keys of
+# `kde` and the `data_*` keys):
+
+# %%
+def pct(xs):
+    return "/".join(f"{x:.0%}" for x in xs)
+
+
+lines = []
+for task in TASKS:
+    t, run = FIT["tasks"][task], main_run(task)
+    logp, kde = run["mode_logp"], t["kde"]["mode_logp"]
+    above = all(v > run["transit_logp"] for v in logp.values())
+    lines.append(
+        f"* **`{task}`, density.** The mean log P(s) of the held-out states at each mode is "
+        f"{min(logp.values()):.1f} to {max(logp.values()):.1f} for SoftFlow (the KDE: "
+        f"{min(kde.values()):.1f} to {max(kde.values()):.1f}), against "
+        f"{run['transit_logp']:.1f} for the states in transit (the KDE: "
+        f"{t['kde']['transit_logp']:.1f}): "
+        + ("every mode ranks above the states between them" if above else
+           "not every mode ranks above the states between them")
+        + f". Its lowest mode is {min(logp, key=logp.get)} "
+        f"({t['data_at_mode_shares'][t['modes'].index(min(logp, key=logp.get))]:.0%} of the "
+        f"states), its highest {max(logp, key=logp.get)}: a spread of "
+        f"{max(logp.values()) - min(logp.values()):.1f} nats per state between modes.")
+    lines.append(
+        f"* **`{task}`, samples.** The flow's samples fall to the nearest mode in "
+        f"{pct(run['sample_mode_shares'])} (data: {pct(t['data_mode_shares'])}, modes "
+        f"{'/'.join(t['modes'])}), but only {sum(run['sample_at_mode_shares']):.0%} land "
+        f"*at* a mode (within {t['at_mode_tolerance']:g} of it), against "
+        f"{sum(t['data_at_mode_shares']):.0%} of the demonstration states.")
+display(Markdown("\n".join(lines)))
+
+# %% [markdown]
+# The right panel above shows the cheetah's case: the data's forward velocity has two sharp
+# peaks, one per running direction, while the samples' density spreads between them. The
+# flow puts high density on each mode but spends much of its mass between them.
 #
 # For DC the first point is the one that matters: its reward is $\log P_w(s)$, a density, not
 # a sampler, and that density ranks the states at every mode of both tasks above the states
@@ -483,25 +522,39 @@ draw_densities([(bench_softflow.model_name(s), FIT_ARRAYS[f"toy_density_sigma_{s
                "stored toy densities, seed 0, by sigma_max")
 
 # %% [markdown]
-# What the stored sweep shows (`data/results/softflow_fit.json`: `toy.summary` and
+# What the stored sweep shows (rendered from `fit_record`: `toy.summary` and
 # `tasks.reacher4.runs`):
-#
-# * On the toy a larger $\sigma_{\max}$ buys density off the manifold: at noise 0.05 the
-#   held-out NLL falls from 4.28 nats (plain CNF) to 0.85, 0.75 and 0.45 as $\sigma_{\max}$
-#   goes 0.03, 0.1, 0.3. On the circle itself every SoftFlow is worse than the plain CNF
-#   (−0.64 to −0.83 against −1.84), and the images show the ring widening with
-#   $\sigma_{\max}$.
-# * On `reacher4` the same: the held-out NLL of the perturbed states falls from 2.2 (plain
-#   CNF) to −5.6, −8.2 and −12.0, and the log-density of the states in transit rises from
-#   −14.5 to −6.4, −3.4 and 1.4; on the clean held-out states all four are within about 1.1
-#   nats of each other (−17.6 to −18.7), with no trend.
-#
+
+# %%
+toy_s = FIT["toy"]["summary"]
+levels = sorted(toy_s, key=float)
+soft = [lv for lv in levels if float(lv) > 0]
+r4_runs = sorted(r4["runs"], key=lambda r: r["sigma_max"])
+pert_key = next(k for k in r4_runs[0]["heldout_nll"] if k != "clean")
+clean = [r["heldout_nll"]["clean"] for r in r4_runs]
+sigmas = ", ".join(f"{r['sigma_max']:g}" for r in r4_runs)
+display(Markdown("\n".join([
+    f"* **The toy.** At noise 0.05 the held-out NLL goes from {toy_s['0']['0.05']['mean']:.2f} "
+    f"nats (plain CNF) to " + ", ".join(f"{toy_s[lv]['0.05']['mean']:.2f}" for lv in soft)
+    + f" as $\\sigma_{{\\max}}$ goes {', '.join(soft)}. On the circle itself the plain "
+    f"CNF scores {toy_s['0']['0']['mean']:.2f} against SoftFlow's "
+    f"{min(toy_s[lv]['0']['mean'] for lv in soft):.2f} to "
+    f"{max(toy_s[lv]['0']['mean'] for lv in soft):.2f}, and the images show the ring "
+    f"widening with $\\sigma_{{\\max}}$.",
+    f"* **`reacher4`.** The held-out NLL of the perturbed states ({pert_key}) goes "
+    + " → ".join(f"{r['heldout_nll'][pert_key]:.1f}" for r in r4_runs)
+    + ", the log-density of the states in transit "
+    + " → ".join(f"{r['transit_logp']:.1f}" for r in r4_runs)
+    + ", and on the clean held-out states "
+    + " → ".join(f"{c:.1f}" for c in clean)
+    + f" (σ_max {sigmas}).",
+])))
+
+# %% [markdown]
 # So $\sigma_{\max}$ sets how far around the data the density reaches: the width of the slope
 # DC's reward offers a learner that is a little off the expert's states. Too small and the
-# reward is a cliff; too large and states far from the expert are rewarded too. On these two
-# problems 0.3 scored best off the data, and on it at most 0.2 nats behind the best SoftFlow
-# (the toy) or best of all (`reacher4`); we keep the paper's 0.1, and have not tried levels
-# above 0.3.
+# reward is a cliff; too large and states far from the expert are rewarded too. We keep the
+# paper's 0.1, and have not tried levels above 0.3.
 #
 #
 # ## How fast is `log_prob`?
@@ -565,11 +618,11 @@ display(train.round(2))
 # * SoftFlow trains on $x+\sigma\varepsilon$ with $\sigma\sim\mathcal U[0,\sigma_{\max}]$
 #   given to the network, and evaluates at $\sigma=0$: a well-posed problem and a density that
 #   falls off smoothly around the data.
-# * In our runs (`data/results/softflow_fit.json`) SoftFlow beat a plain CNF on points a
+# * In our runs (the `softflow_fit` cells) SoftFlow beat a plain CNF on points a
 #   little off a circle on every seed and lost on points exactly on it; on expert states it
-#   fitted held-out demonstrations better than a KDE and gave every mode of `reacher4` and
-#   `halfcheetah2` a higher density than the states between them, while its samples spread
-#   most of their mass between the modes.
+#   fitted held-out demonstrations better than a KDE and ranked the states at the modes of
+#   `reacher4` and `halfcheetah2` above the states between them (the section above renders
+#   it from the cells), while few of its samples landed at a mode.
 # * `softflow.fit` / `flow.log_prob` / `flow.sample` are the library's interface; the
 #   evaluation path is about 6 times faster than a naive one at the same accuracy, which
 #   matters because DC evaluates it on every learner state.

@@ -132,7 +132,7 @@ def _train_curve(log: list[dict], points: int = 50) -> dict:
             "nll": [float(np.mean([log[i]["nll"] for i in c])) for c in chunks]}
 
 
-def _mean_std(values) -> dict:
+def mean_std(values) -> dict:
     v = np.asarray(values, dtype=float)
     return {"mean": float(v.mean()), "std": float(v.std()), "per_seed": v.tolist()}
 
@@ -277,6 +277,29 @@ def baselines(d: dict) -> dict:
     return out
 
 
+def task_context(d: dict) -> tuple[dict, dict]:
+    """A task's facts beside its flows (the ``data`` cell of the ``softflow_fit`` study): the
+    split, the data's mode shares, the Gaussian and KDE baselines, and (features) a subsample
+    of the data's mode feature; the same entries :func:`softflow_fit_benchmark` writes."""
+    n_modes = len(d["modes"])
+    data_feat = d["pool"][:, d["feature"]]
+    res = {"state_dim": int(d["train"].shape[1]), "train_states": len(d["train"]),
+           "train_episodes": d["train_episodes"], "held_episodes": d["held_episodes"],
+           "heldout_states": len(d["held_out"]), "modes": list(d["modes"]),
+           "feature": d["feature_name"], "feature_corr_with_mode_feature": d["feature_corr"],
+           "data_mode_shares": _shares(d["classify"](data_feat), n_modes),
+           "data_at_mode_shares": _at_mode_shares(d, data_feat),
+           "mode_centres": d["centres"].tolist(), "at_mode_tolerance": d["tolerance"],
+           "settle_steps": SETTLE_STEPS, "test_noise": TASK_TEST_NOISE, **baselines(d)}
+    if d["feature"].stop - d["feature"].start == 1:   # 1-D feature: density curves
+        lo, hi = np.percentile(data_feat, [0.1, 99.9])
+        grid = np.linspace(lo - 0.1 * (hi - lo), hi + 0.1 * (hi - lo), 200)
+        res["feature_grid"] = grid.tolist()
+        res["feature_kde_data"] = feature_kde(data_feat[:, 0], grid)
+    sub = data_feat[np.random.default_rng(0).choice(len(data_feat), N_SAMPLES, replace=False)]
+    return res, {"data_features": np.asarray(sub, np.float32)}
+
+
 def feature_kde(values: np.ndarray, grid: np.ndarray) -> list[float]:
     """A 1-D Gaussian KDE (Scott's bandwidth) of ``values`` on ``grid``."""
     from scipy import stats
@@ -315,9 +338,9 @@ def softflow_fit_benchmark(b=None, tasks=FIT_TASKS, log=print) -> tuple[dict, di
     toy_summary = {}
     for s in compared:
         rows = [r for r in toy_rows if r["sigma_max"] == s]
-        toy_summary[f"{s:g}"] = {nz: _mean_std([r["heldout_nll"][nz] for r in rows])
+        toy_summary[f"{s:g}"] = {nz: mean_std([r["heldout_nll"][nz] for r in rows])
                                  for nz in rows[0]["heldout_nll"]}
-    gap = {nz: _mean_std([c["heldout_nll"][nz] - f["heldout_nll"][nz]
+    gap = {nz: mean_std([c["heldout_nll"][nz] - f["heldout_nll"][nz]
                           for c, f in zip([r for r in toy_rows if r["sigma_max"] == 0],
                                           [r for r in toy_rows if r["sigma_max"] == 0.1])])
            for nz in toy_summary["0"]}

@@ -6,9 +6,20 @@ expert-state flows per task, seed and sigma_max (the sweep on ``reacher4``, 0.1 
 ``halfcheetah2``), each with its held-out NLL (:func:`experiments.softflow.toy_run`,
 :func:`experiments.softflow.task_run`).  The aggregate gives each (task, sigma) row's held-out
 NLL with its interval over seeds and the paired CNF - SoftFlow(0.1) gap on the toy.
+
+What chapter 03 draws is in the cells too: each toy cell's density on a
+``budget.softflow_grid`` square (its features ``.npz``), and per task a ``data`` cell (learner
+``data``) with the split's facts, the Gaussian and KDE baselines of the same training states
+and a subsample of the data's mode feature.  :func:`fit_record` rebuilds the
+chapter's record from them.
 """
 
 from __future__ import annotations
+
+import dataclasses as _dc
+import pathlib
+
+import numpy as np
 
 from dc_lesson.experiments import aggregate as _agg
 from dc_lesson.experiments import cells
@@ -27,9 +38,11 @@ def cells_at(b):
         for s in _levels(b):
             out.append(cells.make_cell(NAME, "softflow", "circle", 0, seed,
                                        {"points": b.softflow_toy_points,
-                                        "iterations": b.softflow_toy_iters, "sigma_max": s},
+                                        "iterations": b.softflow_toy_iters, "sigma_max": s,
+                                        "grid": b.softflow_grid},
                                        variant=f"sigma={s:g}"))
     for task in _sf.FIT_TASKS:
+        out.append(cells.make_cell(NAME, "data", task, 0, 0, {"states": b.softflow_states}))
         for seed in b.softflow_task_seeds:
             for s in (_levels(b) if task == _sf.SWEEP_TASK else (0.1,)):
                 out.append(cells.make_cell(NAME, "softflow", task, 0, seed,
@@ -42,21 +55,92 @@ def cells_at(b):
 def run_cell(cell, needs):
     c = cell.config
     if cell.task == "circle":
-        row = _sf.toy_run(cell.seed, (c["sigma_max"],), c["points"], c["iterations"])[0]
-        return row, None
+        row = _sf.toy_run(cell.seed, (c["sigma_max"],), c["points"], c["iterations"],
+                          grid=c["grid"])[0]
+        return row, {"density": row.pop("density"), "grid": row.pop("grid")}
     d = _sf.task_data(cell.task, c["states"])
+    if cell.learner == "data":
+        return _sf.task_context(d)
     row = _sf.task_run(d, c["sigma_max"], c["iterations"], cell.seed)
     return row, {"sample_features": row.pop("sample_features")}
 
 
 def aggregate(recs, b):
+    fits = [r for r in recs if r["cell"]["learner"] != "data"]
     obs = [_agg.observation(r, {f"nll {k}": v for k, v in r["result"]["heldout_nll"].items()})
-           for r in recs]
+           for r in fits]
     names = sorted({k for o in obs for k in o if k.startswith("nll ")})
     gap = _agg.paired([o for o in obs if o["task"] == "circle"], "softflow-sigma=0",
                       "softflow-sigma=0.1", measures=names)
     return {"table": _agg.table(obs, measures=names), "cnf_minus_softflow": gap,
-            "runs": [{**r["cell"], **r["result"]} for r in recs]}
+            "runs": [{**r["cell"], **r["result"]} for r in fits],
+            "tasks": {r["cell"]["task"]: {**r["result"],
+                                          "config_hash": r["cell"]["config_hash"]}
+                      for r in recs if r["cell"]["learner"] == "data"},
+            "toy": {"config": _dc.asdict(_sf.toy_config(0.1, b.softflow_toy_iters)),
+                    "train_points": b.softflow_toy_points, "test_points": _sf.TOY_TEST_POINTS,
+                    "test_noises": list(_sf.TOY_TEST_NOISES)}}
+
+
+def fit_record(record: dict, root=None) -> tuple[dict, dict]:
+    """Chapter 03's record and arrays, rebuilt from the ``softflow_fit`` cells' aggregate
+    (``softflow_fit_cells.json``) and their features: the structure
+    :func:`experiments.softflow.softflow_fit_benchmark` returns (toy runs, per-sigma summaries with the
+    population std over seeds, the CNF - SoftFlow gap per seed, task runs beside the task's
+    facts), so every number the chapter reads is a cell's."""
+    runs = record["runs"]
+    arrays: dict[str, np.ndarray] = {}
+
+    def feats(r):   # the features .npz of the cell a run row came from
+        row = r["learner"] + (f"-{r['variant']}" if r["variant"] else "")
+        return cells.read_features(
+            pathlib.Path(root or cells.cells_root()) / r["study"] / r["task"]
+            / f"{row}__n{r['n_demos']}__s{r['seed']}__{r['config_hash']}.json")
+
+    toy_rows = sorted((r for r in runs if r["task"] == "circle"),
+                      key=lambda r: (r["seed"], r["sigma_max"]))
+    seeds = sorted({r["seed"] for r in toy_rows})
+    compared = sorted({r["sigma_max"] for r in toy_rows})
+    for r in toy_rows:
+        if r["seed"] == seeds[0]:
+            f = feats(r)
+            arrays[f"toy_density_sigma_{r['sigma_max']:g}"] = f["density"]
+            arrays["toy_grid"] = f["grid"]
+    summary = {f"{s:g}": {nz: _sf.mean_std([r["heldout_nll"][nz] for r in toy_rows
+                                         if r["sigma_max"] == s])
+                          for nz in toy_rows[0]["heldout_nll"]} for s in compared}
+    cnf = {r["seed"]: r for r in toy_rows if r["sigma_max"] == 0}
+    soft = {r["seed"]: r for r in toy_rows if r["sigma_max"] == 0.1}
+    gap = {nz: _sf.mean_std([cnf[s]["heldout_nll"][nz] - soft[s]["heldout_nll"][nz]
+                          for s in seeds]) for nz in summary["0"]}
+    toy = {**record["toy"], "seeds": seeds, "sigma_maxes": compared, "runs": toy_rows,
+           "summary": summary, "cnf_minus_softflow": gap}
+    tasks = {}
+    for task, context in record["tasks"].items():
+        res = {**context, "runs": []}
+        for r in sorted((r for r in runs if r["task"] == task),
+                        key=lambda r: (r["seed"], r["sigma_max"])):
+            feat = feats(r)["sample_features"]
+            arrays[f"{task}_samples_seed{r['seed']}_sigma_{r['sigma_max']:g}"] = feat
+            row = {k: v for k, v in r.items() if k not in (
+                "study", "learner", "variant", "task", "n_demos", "config_hash")}
+            if "feature_grid" in res:
+                f = feat[:, 0]
+                row["feature_kde_samples"] = _sf.feature_kde(f[np.isfinite(f)],
+                                                         np.asarray(res["feature_grid"]))
+            res["runs"].append(row)
+        data_cell = {"study": "softflow_fit", "learner": "data", "task": task, "n_demos": 0,
+                     "seed": 0, "variant": "", "config_hash": context["config_hash"]}
+        arrays[f"{task}_data_features"] = feats(data_cell)["data_features"]
+        res.pop("config_hash")
+        tasks[task] = res
+    from dc_lesson import budget as _budget
+    out = {k: record[k] for k in ("command", "budget", "revision", "time", "seeds")
+           if k in record}
+    sizes = {k: v for k, v in _dc.asdict(_budget.get(record["budget"])).items()
+             if k.startswith("softflow_")}
+    return {**out, "budget_sizes": sizes, "threads": 1, "wall_seconds": record["wall_seconds"],
+            "toy": toy, "tasks": tasks, "cells": record["cells"]}, arrays
 
 
 STUDY = cells.Study(NAME, "SoftFlow on the circle toy and on expert states (chapter 03)",
