@@ -5,14 +5,14 @@
 | ``reference`` | (read by the others) | fresh expert episodes per task, collected once |
 | ``bc_demos`` | ``bc_demos.json`` | BC per task, demonstration count and seed; the expert row |
 | ``bc_drift`` | ``bc_drift_cells.json`` (chapter 01 still reads the bench file ``bc_drift.json``) | BC's distance from the demonstrated states, and the expert's |
-| ``gail_modes`` | ``gail_modes.json`` | BC warm start and GAIL per multi-mode task and seed |
+| ``gail_modes`` | ``gail_modes.json`` (not run as cells yet: the file is the bench's, chapter 02 reads it; ``table1`` holds GAIL on these tasks at 10/5 seeds) | BC warm start and GAIL per multi-mode task and seed |
 | ``gail_lr`` | ``gail_lr.json`` | GAIL per learning rate and seed on hopper (11 demonstrations) |
-| ``dc_modes`` | ``dc_modes.json`` | BC warm start and DC per multi-mode task and seed |
+| ``dc_modes`` | ``dc_modes.json`` (likewise; ``table1`` holds DC) | BC warm start and DC per multi-mode task and seed |
 | ``dc_ablation`` | ``dc_ablation.json`` | DC's loop counts, one long loop and consensus ADMM on hopper (11 demonstrations), every seed |
 | ``dc_lr`` | ``dc_lr.json`` | DC per learning rate and seed on hopper (11 demonstrations) |
 | ``table1`` | ``table1.json`` | every learner and control on the multi-mode tasks, both evaluations |
 | ``table3`` | ``table3.json`` | every learner on the single-mode tasks per demonstration count |
-| ``softflow_fit`` | ``softflow_fit_cells.json`` (chapter 03 still reads the bench file ``softflow_fit.json``) | SoftFlow on the circle toy and on expert states |
+| ``softflow_fit`` | ``softflow_fit_cells.json`` (chapter 03 reads it and the cells' arrays through ``fit_record``) | SoftFlow on the circle toy and on expert states, and each task's data and baselines |
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""What SoftFlow learns, as cells (chapter 03; ``softflow_fit.json``).
+"""What SoftFlow learns, as cells (chapter 03; ``softflow_fit_cells.json``).
 
 Cells: the circle toy per seed of ``budget.softflow_toy_seeds`` and per sigma_max of the sweep
 (0 = the plain CNF; task ``circle``, learner ``softflow``, variant ``sigma=...``), and the
