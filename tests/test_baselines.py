@@ -430,3 +430,16 @@ def test_learner_cost_benchmark_reports_setup_and_loop():
     assert 0 < row["loop_seconds"] <= row["seconds"] + 1e-9
     assert row["seconds_per_100k"] == pytest.approx(
         row["setup_seconds"] + row["loop_seconds"] / 2048 * 1e5)
+
+
+def test_the_cost_benchmark_runs_a_cut_too_short_for_gails_warm_up():
+    """``python -m dc_lesson.perf.cost --steps 8192`` once died at GAIL's check that its critic
+    warm-up leaves iterations to train the policy: a cut that short now runs the fewest whole
+    iterations each learner accepts (and the row reports the interactions that ran)."""
+    from dc_lesson import budget
+    from dc_lesson.perf import cost
+    b = budget.get("lesson")
+    for name in cost.LEARNERS:
+        cfg = cost._config(name, b, 8192)
+        if hasattr(cfg, "value_warmup"):
+            assert cfg.ppo.n_updates > cfg.value_warmup

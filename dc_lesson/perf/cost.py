@@ -39,7 +39,13 @@ def _config(name: str, b, steps: int):
     cfg = algorithms.get(name).preset(b, seed=0)
     if name == "dc":
         return dataclasses.replace(cfg, iterations=max(1, steps // (cfg.loops * cfg.batch_size)))
-    return cfg.with_steps(steps)
+    try:
+        return cfg.with_steps(steps)
+    except ValueError:
+        # Fewer interactions than the learner's critic warm-up leaves iterations for (GAIL's
+        # first value_warmup iterations train the critic only): run the fewest it accepts;
+        # the row's env_steps says what ran, and the per-100k figure scales from that.
+        return cfg.with_steps((getattr(cfg, "value_warmup", 0) + 1) * cfg.ppo.batch_size)
 
 
 def learner_costs(task: str = "reacher4", names=LEARNERS, steps: int = 20_000,
