@@ -135,3 +135,24 @@ def test_a_killed_sweep_process_resumes_to_the_same_records(uninterrupted, tmp_p
     b = _results(cells_dir)
     a = _results(root_a)
     assert len(b) == 2 and all(b[k] == a[k] for k in b)   # the reference and BC seed 0
+
+
+def test_a_new_row_is_estimated_from_its_learners_cost_per_interaction():
+    """A row no cell of which has run (another loop count) is estimated from the same
+    learner's measured seconds per interaction on the task, times its own interactions (DC's
+    from its loops and iterations, not the budget's steps it carries)."""
+    from dc_lesson.experiments.studies import dc_ablation
+    lesson = budget.get("lesson")
+    grid = {c.variant: c for c in dc_ablation.cells_at(lesson) if c.seed == 0}
+    one, four = grid["loops=1"], grid["loops=4"]
+    assert sweep.interactions(four.config) == 4 * sweep.interactions(one.config)
+    assert one.config["steps"] == four.config["steps"]          # what a naive estimate reads
+    rates = {("dc", "hopper", "lesson"): [0.001, 0.002, 0.003]}
+    costs = {("dc-loops=2", "hopper", "lesson"): [120.0]}
+    assert sweep.estimate(four, costs, "lesson", rates) == pytest.approx(
+        0.002 * sweep.interactions(four.config))
+    assert sweep.estimate(one, costs, "lesson", rates) == pytest.approx(
+        0.002 * sweep.interactions(one.config))
+    costs[("dc-loops=4", "hopper", "lesson")] = [300.0]           # measured: its own row wins
+    assert sweep.estimate(four, costs, "lesson", rates) == 300.0
+    assert sweep.interactions({"steps": 0}) is None               # BC: no interactions

@@ -6,8 +6,10 @@
    whose fields match (``task=reacher4``, ``seed=0,1``, ``learner=bc``, ``n_demos=4``).
 2. The results folder is checked writable before any compute (a clear error otherwise).
 3. Finished cells (a record with the same config hash) are skipped; ``--dry-run`` stops here and
-   prints the cells left and their estimated cost, from the wall times of finished cells with
-   the same learner, task and budget (:func:`measured_costs`).
+   prints the cells left and their estimated cost, from the wall times of finished cells of
+   the same row, task and budget (:func:`measured_costs`), else from the same learner's
+   seconds per interaction on the task times the cell's own interactions
+   (:func:`measured_rates`).
 4. The rest run as Ray tasks, stage by stage (references first): a local Ray instance
    (``ray.init(num_cpus=N, include_dashboard=False)``, N = the machine's cores by default),
    one CPU and one torch thread per task; ``--address`` joins an existing Ray cluster instead.
@@ -95,6 +97,36 @@ def measured_costs(root=None) -> dict[tuple, list[float]]:
     return out
 
 
+def interactions(config: dict) -> int | None:
+    """The environment interactions a cell's run spends, from its config: DC's loops x
+    iterations x batch (its ``steps`` is the budget's, whatever the loop overrides), else the
+    cell's ``steps``; None for cells that interact with no environment budget (BC, flows)."""
+    dc = config.get("dc")
+    if isinstance(dc, dict) and {"loops", "iterations"} <= set(dc) and "ppo" in dc:
+        return int(dc["loops"] * dc["iterations"] * dc["ppo"]["n_envs"] * dc["ppo"]["n_steps"])
+    steps = config.get("steps")
+    return int(steps) if isinstance(steps, (int, float)) and steps > 0 else None
+
+
+def measured_rates(root=None) -> dict[tuple, list[float]]:
+    """Wall seconds per interaction of every finished cell that interacts, by (learner, task,
+    budget): the estimate of a new row (another loop count, another rate) from its
+    learner's other rows on the task, scaled by its own interactions."""
+    base = pathlib.Path(root or _cells.cells_root())
+    out: dict[tuple, list[float]] = {}
+    for p in sorted(base.glob("*/*/*.json")):
+        try:
+            r = _cells.read_record(p)
+        except _cells.CellError:
+            continue
+        n = interactions(r["config"])
+        if n:
+            out.setdefault((r["cell"]["learner"], r["cell"]["task"],
+                            r["provenance"]["budget"]), []).append(
+                r["provenance"]["wall_seconds"] / n)
+    return out
+
+
 def legacy_costs(results=None) -> dict[tuple, list[float]]:
     """Per-run wall seconds from the whole-grid result files that ``dc-lesson bench`` wrote
     before the cells (a file that is already an aggregate is skipped), keyed as
@@ -152,10 +184,17 @@ def legacy_costs(results=None) -> dict[tuple, list[float]]:
     return out
 
 
-def estimate(cell: _cells.Cell, costs: dict, budget_name: str) -> float | None:
-    """The median measured wall time of cells like this one (same row, task and budget; else
-    the same learner and task), or None when none has run."""
+def estimate(cell: _cells.Cell, costs: dict, budget_name: str,
+             rates: dict | None = None) -> float | None:
+    """The median measured wall time of cells like this one (same row, task and budget); else,
+    with ``rates``, the median seconds per interaction of the same learner on the task times
+    this cell's interactions; else the same learner's and task's median wall time; or None
+    when none has run."""
     v = costs.get((cell.row, cell.task, budget_name))
+    n = interactions(cell.config)
+    per = (rates or {}).get((cell.learner, cell.task, budget_name))
+    if not v and per and n:
+        return statistics.median(per) * n
     if not v:
         v = [s for (row, task, b), w in costs.items() for s in w
              if b == budget_name and task == cell.task and row.split("-")[0] == cell.learner]
@@ -173,7 +212,8 @@ def plan(study: _cells.Study, b: _budget.Budget, only=(), root=None, workers: in
     grid = select(study.grid(b), only)
     costs = {**legacy_costs(), **measured_costs(root)}   # cells win over the old files
     todo = [c for c in grid if not _cells.is_done(c, root)]
-    est = [estimate(c, costs, b.name) for c in todo]
+    rates = measured_rates(root)
+    est = [estimate(c, costs, b.name, rates) for c in todo]
     known = [e for e in est if e is not None]
     return {"grid": grid, "todo": todo, "estimates": est,
             "cpu_seconds": sum(known), "unknown": len(est) - len(known),
@@ -339,4 +379,5 @@ def _eta(left, walls, costs, b, workers) -> float | None:
 
 
 __all__ = ["ONLY_KEYS", "SweepError", "SweepReport", "check_writable", "estimate", "execute",
-           "format_plan", "legacy_costs", "measured_costs", "plan", "run", "select", "start_ray"]
+           "format_plan", "interactions", "legacy_costs", "measured_costs", "measured_rates",
+           "plan", "run", "select", "start_ray"]
