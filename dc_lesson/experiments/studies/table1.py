@@ -34,6 +34,9 @@ row                     stage  what it is
 ``dril`` ... ``gpril``  3      the paper's other baselines, from the same start
 ``bc-mix``, ``dc-mix``  4      the mixture policy (4 components): BC as bc-full, DC from it
 ``dc-coin`` ...         4      the hidden-coin demonstrations: DC, mixture BC and DC
+``gail-coin``           5      GAIL on the hidden-coin demonstrations, from the same coin BC
+                               start as dc-coin: chapter 02's coin-flip experiment as cells,
+                               with the seeds of the rest of the table
 ======================  =====  ==============================================================
 
 Choices: the mixture DC starts from the mixture BC with its component spreads reset to
@@ -101,6 +104,7 @@ ROWS = {r.name: r for r in (
     Row("dc", "coin", 4, demos="coin"),
     Row("bc", "mix-coin", 4, demos="coin", mixture=True),
     Row("dc", "mix-coin", 4, demos="coin", mixture=True),
+    Row("gail", "coin", 5, demos="coin"),
 )}
 
 
