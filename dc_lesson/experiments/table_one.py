@@ -74,6 +74,11 @@ CONTROLS = (
     ("gail", "gail-noisy", "scaled_return", "does GAIL's quieter start (log-std -2) help it?"),
     ("dc-mix", "dc", "emd", "does the mixture policy help DC?"),
     ("bc-mix", "bc-full", "emd", "does the mixture policy help BC?"),
+    ("dc-coin", "bc-coin", "emd", "on the hidden-coin demonstrations, does DC move its start "
+     "towards the expert?"),
+    ("gail-coin", "bc-coin", "emd", "on the hidden-coin demonstrations, does GAIL?"),
+    ("bc-mix-coin", "bc-coin", "emd", "can a mixture BC follow the hidden coin better?"),
+    ("dc-mix-coin", "dc-coin", "emd", "does the mixture help DC on the hidden coin?"),
 )
 
 

@@ -271,7 +271,8 @@ PAIRS = (("dc", "bc"), ("dc", "gail"), ("dc", "bc-all"), ("dc", "bc-full"), ("ga
          ("gail", "gail-noisy"),
          ("dc", "dril"), ("dc", "pwil"), ("dc", "ndi"), ("dc", "gpril"),
          ("bc-mix", "bc-full"), ("dc-mix", "dc"), ("dc-coin", "bc-coin"),
-         ("bc-mix-coin", "bc-coin"), ("dc-mix-coin", "dc-coin"))
+         ("bc-mix-coin", "bc-coin"), ("dc-mix-coin", "dc-coin"), ("gail-coin", "bc-coin"),
+         ("dc-coin", "gail-coin"))
 
 
 def aggregate(records, b) -> dict:
