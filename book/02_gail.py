@@ -543,6 +543,25 @@ else:
         f"against the start {fmt_entry(against[t['row']], 'scaled_return')}"
         for r in rates for t in sweep["table"]
         if t["row"] == f"gail-lr={r:g}" and t["row"] in against)))
+    means = [next(t["scaled_return_mean"] for t in sweep["table"] if t["row"] == f"gail-lr={r:g}")
+             for r in rates]
+    below = [r for r in rates if (against.get(f"gail-lr={r:g}") or {}).get(
+        "scaled_return", {}).get("hi") is not None
+        and against[f"gail-lr={r:g}"]["scaled_return"]["hi"] < 0]
+    rising = all(a < b for a, b in zip(means, means[1:]))
+    first = [ablations.eval_curves(sweep_obs, f"gail-lr={r:g}")[1][:, 0].mean() for r in rates]
+    display(Markdown(
+        f"GAIL ends below its own start at {len(below)} of the {len(rates)} rates (the paired "
+        f"interval below zero), and its final return "
+        + ("rises with the learning rate at every step of the sweep: the paper's \"fails at "
+           "1e-3 and higher\" is the opposite of what our port shows." if rising else
+           "does not rise steadily with the learning rate.")
+        + f" At its first checkpoint GAIL's mean action scores "
+        + ", ".join(f"{v:.2f}" for v in first) + f" (rates {', '.join(f'{r:g}' for r in rates)}"
+        f", against the start's {start:.2f}): "
+        + ("at every rate it first falls from its start, and what differs is how far it "
+           "climbs back within the sweep's interactions." if max(first) < start - 0.1 else
+           "not every rate falls first.")))
 
 # %% [markdown]
 # ### Is the collapse an artefact of the learning rate?
