@@ -7,7 +7,9 @@ and the seeds of ``budget.seeds_for("hopper")``, every RL run from the seed's BC
   iterations), ``dc-loops=1-long`` (one loop as long as L = 4: the same interactions),
   ``dc-update=admm`` (consensus ADMM) and ``dc`` (the defaults: two loops, averaging);
 * ``dc_lr.json`` and ``gail_lr.json``: rows ``dc-lr=X`` and ``gail-lr=X``, one learning rate
-  for every optimiser of the learner, ``budget.lr_sweep_steps`` interactions each.
+  for every optimiser of the learner, ``budget.lr_sweep_steps`` interactions each.  GAIL here
+  is chapter 02's (``gail.sized``: it explores at the warm start's log-std -0.5, as DC does),
+  not Table I's tuned start of -2.
 
 Every cell keeps a deterministic evaluation curve (``eval_curve``: mean-action episodes at
 evenly spaced checkpoints) and DC's cells their per-iteration log (``curve``: the L1 distance
