@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from dc_lesson.experiments import claims as _claims
+from dc_lesson.experiments import verdict_rules as _claims
 from dc_lesson.storage import read_result
 
 TASK = "hopper"

@@ -354,17 +354,8 @@ def softflow_fit_benchmark(b=None, tasks=FIT_TASKS, log=print) -> tuple[dict, di
     task_results = {}
     for task in tasks:
         d = task_data(task, b.softflow_states)
-        base = baselines(d)
-        n_modes = len(d["modes"])
-        data_feat = d["pool"][:, d["feature"]]
-        res = {"state_dim": int(d["train"].shape[1]), "train_states": len(d["train"]),
-               "train_episodes": d["train_episodes"], "held_episodes": d["held_episodes"],
-               "heldout_states": len(d["held_out"]), "modes": list(d["modes"]),
-               "feature": d["feature_name"], "feature_corr_with_mode_feature": d["feature_corr"],
-               "data_mode_shares": _shares(d["classify"](data_feat), n_modes),
-               "data_at_mode_shares": _at_mode_shares(d, data_feat),
-               "mode_centres": d["centres"].tolist(), "at_mode_tolerance": d["tolerance"],
-               "settle_steps": SETTLE_STEPS, "test_noise": TASK_TEST_NOISE, **base, "runs": []}
+        context, extra = task_context(d)
+        res = {**context, "runs": []}
         levels = compared if task == SWEEP_TASK else (0.1,)
         for seed in b.softflow_task_seeds:
             for s in levels:
@@ -379,16 +370,12 @@ def softflow_fit_benchmark(b=None, tasks=FIT_TASKS, log=print) -> tuple[dict, di
                     f"{np.round(row['sample_at_mode_shares'], 2).tolist()}"
                     f" (data {np.round(res['data_at_mode_shares'], 2).tolist()})"
                     f"  ({row['seconds']:.0f} s)")
-        if d["feature"].stop - d["feature"].start == 1:   # 1-D feature: density curves
-            lo, hi = np.percentile(data_feat, [0.1, 99.9])
-            grid = np.linspace(lo - 0.1 * (hi - lo), hi + 0.1 * (hi - lo), 200)
-            res["feature_grid"] = grid.tolist()
-            res["feature_kde_data"] = feature_kde(data_feat[:, 0], grid)
+        if "feature_grid" in res:   # 1-D feature: the samples' density curves too
             for r in res["runs"]:
                 f = arrays[f"{task}_samples_seed{r['seed']}_sigma_{r['sigma_max']:g}"][:, 0]
-                r["feature_kde_samples"] = feature_kde(f[np.isfinite(f)], grid)
-        arrays[f"{task}_data_features"] = data_feat[
-            np.random.default_rng(0).choice(len(data_feat), N_SAMPLES, replace=False)]
+                r["feature_kde_samples"] = feature_kde(f[np.isfinite(f)],
+                                                       np.asarray(res["feature_grid"]))
+        arrays[f"{task}_data_features"] = extra["data_features"]
         task_results[task] = res
     payload = {"budget_sizes": {k: v for k, v in dataclasses.asdict(b).items()
                                 if k.startswith("softflow_")},

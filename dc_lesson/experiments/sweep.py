@@ -81,15 +81,19 @@ def check_writable(root) -> pathlib.Path:
     return root
 
 
-def measured_costs(root=None) -> dict[tuple, list[float]]:
-    """Wall seconds of every finished cell on disk, by (learner row, task, budget)."""
-    base = pathlib.Path(root or _cells.cells_root())
-    out: dict[tuple, list[float]] = {}
-    for p in sorted(base.glob("*/*/*.json")):
+def _finished(root=None):
+    """Every readable cell record on disk (an unreadable one is skipped: it will rerun)."""
+    for p in sorted(pathlib.Path(root or _cells.cells_root()).glob("*/*/*.json")):
         try:
-            r = _cells.read_record(p)
+            yield _cells.read_record(p)
         except _cells.CellError:
             continue
+
+
+def measured_costs(root=None) -> dict[tuple, list[float]]:
+    """Wall seconds of every finished cell on disk, by (learner row, task, budget)."""
+    out: dict[tuple, list[float]] = {}
+    for r in _finished(root):
         c = r["cell"]
         row = c["learner"] + (f"-{c['variant']}" if c["variant"] else "")
         out.setdefault((row, c["task"], r["provenance"]["budget"]), []).append(
@@ -112,13 +116,8 @@ def measured_rates(root=None) -> dict[tuple, list[float]]:
     """Wall seconds per interaction of every finished cell that interacts, by (learner, task,
     budget): the estimate of a new row (another loop count, another rate) from its
     learner's other rows on the task, scaled by its own interactions."""
-    base = pathlib.Path(root or _cells.cells_root())
     out: dict[tuple, list[float]] = {}
-    for p in sorted(base.glob("*/*/*.json")):
-        try:
-            r = _cells.read_record(p)
-        except _cells.CellError:
-            continue
+    for r in _finished(root):
         n = interactions(r["config"])
         if n:
             out.setdefault((r["cell"]["learner"], r["cell"]["task"],
