@@ -158,3 +158,14 @@ def test_stored_verdicts_take_the_ablations_from_the_hopper_studies():
     names = {v.claim for v in claims.verdicts()}
     assert {c.name for c in ablations.CLAIMS} <= names
     assert claims.CONVERGES.name not in names        # the Table I-era convergence rule
+
+
+def test_the_worker_cache_keeps_a_few_seeds_and_drops_the_oldest():
+    _imitation._CACHES.clear()
+    cache = _imitation.worker_cache(("test",))
+    for seed in range(_imitation._STARTS_KEPT + 3):
+        cache[("hopper", seed)] = seed
+    assert len(cache) == _imitation._STARTS_KEPT
+    assert ("hopper", 0) not in cache and ("hopper", _imitation._STARTS_KEPT + 2) in cache
+    assert _imitation.worker_cache(("test",)) is cache
+    _imitation._CACHES.clear()

@@ -86,15 +86,25 @@ def cached_start(key: tuple, make):
     return copy.deepcopy(_STARTS[key])
 
 
+class _Kept(dict):
+    """A dict that keeps its ``_STARTS_KEPT`` newest entries (a sweep runs a seed's rows one
+    after another, so older seeds' starts are not asked for again)."""
+
+    def __setitem__(self, key, value):
+        super().__setitem__(key, value)
+        while len(self) > _STARTS_KEPT:
+            self.pop(next(iter(self)))
+
+
 _CACHES: dict = {}
 
 
 def worker_cache(key: tuple) -> dict:
-    """A dict kept for this worker process under ``key`` (which must name everything its
-    entries depend on beyond their own keys), for run functions that take a cache of starts
-    (``experiments.dc.run_one``, ``experiments.gail.run_one``): the same deterministic start,
-    evaluated on the same episodes, trained once per worker instead of once per cell."""
-    return _CACHES.setdefault(key, {})
+    """:func:`cached_start`'s store for run functions that take a cache of starts themselves
+    (``experiments.dc.run_one``, ``experiments.gail.run_one``, which also keep the start's
+    evaluation): a dict kept for this worker under ``key`` (which must name everything its
+    entries depend on beyond their own (task, seed) keys), bounded the same way."""
+    return _CACHES.setdefault(key, _Kept())
 
 
 def observations(records, start_row: str = "bc") -> list[dict]:
