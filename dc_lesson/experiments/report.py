@@ -52,9 +52,39 @@ def value(study: str, measure: str, *, table: str = "summary", digits: int = 2,
     return fmt_entry(row(name, table, **match), measure, digits)
 
 
+def trend(values) -> str:
+    """The shape of a sequence of means, in words: ``rises at every step`` (each above the
+    last), ``falls at every step``, or ``has no steady trend``.  Only the shape: whether a
+    difference is real is the paired interval's business, not this word's."""
+    v = [float(x) for x in values]
+    if len(v) < 2:
+        raise ValueError(f"a trend needs at least two values, got {len(v)}")
+    if all(a < b for a, b in zip(v, v[1:])):
+        return "rises at every step"
+    if all(a > b for a, b in zip(v, v[1:])):
+        return "falls at every step"
+    return "has no steady trend"
+
+
+def favourites(names) -> str:
+    """The favourite mode of each seed, in words: ``"every seed favours red"`` when they agree,
+    else ``"the favourite differs between seeds: red (6), blue (3), green (1)"`` (most first,
+    ties in first-seen order)."""
+    names = list(names)
+    if not names:
+        raise ValueError("no seeds to name a favourite of")
+    counts = {n: names.count(n) for n in dict.fromkeys(names)}
+    if len(counts) == 1:
+        return f"every seed favours {names[0]}" if len(names) > 1 else \
+            f"its one seed favours {names[0]}"
+    order = sorted(counts, key=lambda n: -counts[n])
+    return "the favourite differs between seeds: " + ", ".join(f"{n} ({counts[n]})"
+                                                                  for n in order)
+
+
 def verdict(v) -> str:
     """A :class:`claims.Verdict` as one line: the verdict, then its intervals."""
     return f"{v.verdict}: {v.evidence}"
 
 
-__all__ = ["ReportError", "fmt", "fmt_entry", "row", "value", "verdict"]
+__all__ = ["ReportError", "fmt", "favourites", "fmt_entry", "row", "trend", "value", "verdict"]
