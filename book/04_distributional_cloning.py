@@ -47,16 +47,15 @@ import torch
 from IPython.display import Markdown, display
 
 from dc_lesson.algorithms import bc, dc
-from dc_lesson.experiments import dc as bench_dc, gail as bench_gail, claims
+from dc_lesson.experiments import claims, report
 from dc_lesson import evaluation, notebook
 from dc_lesson.viz import plots
 from dc_lesson.storage import read_result
 
 BUDGET = notebook.start(
     "the live DC run below is a few iterations long and its numbers mean nothing. The "
-    "stored benchmarks (data/results/dc_modes.json, table1.json, the ablations' aggregates "
-    "and GAIL's files) are read, not recomputed, so their tables and figures are the real "
-    "ones.")
+    "stored cells (data/results/table1.json and the ablations' aggregates) are read, not "
+    "recomputed, so their tables and figures are the real ones.")
 CHAPTER_START = time.perf_counter()
 
 # %% [markdown]
@@ -259,46 +258,46 @@ plt.show()
 # %% [markdown]
 # ## The first experiment: experts that flip a hidden coin
 #
-# Our first benchmark (`dc-lesson bench dc`, three seeds, `data/results/dc_modes.json`, and
-# GAIL's `gail_modes.json` from the same warm starts) used experts that chose their mode by a
-# coin flip per episode that nothing in the observation reveals. Mean ± standard deviation over
-# the three seeds; the reference is all 25 demonstrations, 18 of which the learners trained on.
+# Our first experiment used experts that chose their mode by a coin flip per episode that
+# nothing in the observation reveals. Table I's study keeps it as its coin rows
+# (`dc-lesson sweep table1`): on the first 18 hidden-coin demonstrations, the 70/30 BC start
+# (`bc-coin`), DC from it (`dc-coin`) and GAIL from it (`gail-coin`, chapter 2's benchmark),
+# 10 seeds on the reachers and 5 on `halfcheetah2`, every policy scored as every Table I row:
+# against 25 fresh expert episodes, mean and 95% interval over seeds, paired by seed where rows
+# share the start. The table shows the mean action; Table I below has both evaluations.
 
 # %%
-dc_modes = read_result("dc_modes.json")
-gail_modes = read_result("gail_modes.json")
-for rec in (dc_modes, gail_modes):
-    print(f"{rec['command']}\n  budget {rec['budget']}, revision {rec['revision'][:12]}, "
-          f"{len(rec['runs'])} runs in {rec['wall_seconds'] / 60:.0f} min")
-rows = claims.table_one(dc_modes, gail_modes)
+from dc_lesson.experiments import table_one
 
-
-def pm(r, m, digits):
-    return f"{r[m + '_mean']:.{digits}f} ± {r[m + '_std']:.{digits}f}"
-
-
-coin_table = pd.DataFrame([{
-    "task": r["task"], "approach": r["method"], "EMD": pm(r, "emd", 3), "KL": pm(r, "kl", 2),
-    "RKL": pm(r, "rkl", 2), "scaled return": pm(r, "scaled_return", 3),
-    "modes": ", ".join(f"{k} {v:.2f}" for k, v in r.get("mode_shares_mean", {}).items())}
-    for r in rows]).set_index(["task", "approach"])
-with pd.option_context("display.max_colwidth", 80):
-    display(coin_table)
-by = {(r["task"], r["method"]): r for r in rows}
-top = {t: max(by[t, "DC"]["mode_shares_mean"].items(), key=lambda kv: kv[1])
-       for t in ("reacher2", "halfcheetah2")}
-display(Markdown(
-    f"DC's largest mode took {top['reacher2'][1]:.2f} of its episodes on `reacher2` "
-    f"({top['reacher2'][0]}) and {top['halfcheetah2'][1]:.2f} on `halfcheetah2` "
-    f"({top['halfcheetah2'][0]}), where the coin gives each mode about half. No Markov "
-    f"unimodal policy can follow a choice it does not observe: it can only split the start "
-    f"states between modes, however it is trained. The paper's experts were TRPO Gaussian "
-    f"MLPs, the learner's own class, whose modes came from the start state and the action "
-    f"noise; so this experiment asks a question the paper did not. The next section explains "
-    f"what does decide mode coverage, and then comes the experiment that can answer the "
-    f"paper's question."))
+t1 = table_one.load()
+coin = [r for r in (table_one.table(t1, "mean") if t1 else [])
+        if r["row"] in ("expert", "bc-coin", "gail-coin", "dc-coin")]
+if not any(r["row"] == "dc-coin" for r in coin):
+    print("table1's coin rows have not run yet: dc-lesson sweep table1 --only row=dc-coin,"
+          "gail-coin && dc-lesson aggregate table1 --partial")
+else:
+    print(table_one.status(t1))
+    with pd.option_context("display.max_colwidth", 70, "display.width", 250):
+        display(pd.DataFrame(coin).set_index(["task", "row"]))
+    lines = table_one.against_start(t1, "dc-coin", "bc-coin")
+    for task in table_one.TASKS:
+        e = table_one.paired(t1, "dc-coin", "gail-coin", task)
+        if e and "emd" in e:
+            lines.append(f"* `{task}`, DC against GAIL from the same coin start "
+                         f"({e['n_seeds']} seeds): EMD dc-coin - gail-coin "
+                         f"{report.fmt_entry(e, 'emd', 3)}, *{table_one.word(e, 'emd')}*.")
+    display(Markdown("\n".join(lines)))
 
 # %% [markdown]
+# However DC and GAIL move their start, no Markov unimodal policy acting with its mean action
+# can follow a choice it does not observe: it can only split the start states between modes,
+# so a seed's shares are the sizes of its regions of start states, not the coin's one half
+# each (the per-seed collapse counts above say how often one region took nearly all). The
+# paper's experts were TRPO Gaussian MLPs, the learner's own class, whose modes came from the
+# start state and the action noise; so this experiment asks a question the paper did not. The
+# next section explains what does decide mode coverage, and then comes the experiment that
+# can answer the paper's question.
+#
 # ## What decides mode coverage
 #
 # **A toy you can run in seconds.** The target $p$ is a 1-D mixture of two Gaussians at
@@ -520,7 +519,7 @@ if t1 is not None:
 #
 # The return of the *stochastic* training episodes as they finish, DC's (π' sampling) and
 # GAIL's, against environment steps; mean and range over seeds, interpolated to a common grid.
-# From the Table I cells (realizable experts) once they have run, else the coin-flip runs.
+# From the Table I cells (realizable experts).
 # Read it with its confound in mind: these returns are earned at each learner's own
 # exploration noise, and Table I's GAIL starts at a log-std of $-2$ while DC starts at
 # $-0.5$, so GAIL's early episodes are quieter, not necessarily better; the claim judged on
@@ -530,26 +529,14 @@ if t1 is not None:
 
 # %%
 def training_curves(task):
-    """{learner: [(steps, returns) per seed]} from table1, else from the coin-flip files."""
+    """{learner: [(steps, returns) per seed]} from table1's DC and GAIL rows."""
     out = {}
-    if t1 is not None:
-        for row, name in (("dc", "DC"), ("gail", "GAIL")):
-            for c in table_one.curves(t1, task, row):
-                pts = [(x, y) for x, y in zip(c["steps"], c["episode_return"]) if y is not None]
-                if pts:
-                    out.setdefault(name, []).append(np.array(pts))
-        if out:
-            return out, "table1"
-    for r in dc_modes["runs"]:
-        if r["task"] == task:
-            c = r["curve"]
-            out.setdefault("DC", []).append(np.array(
-                [(x, y) for x, y in zip(c["env_steps"], c["episode_return"]) if y is not None]))
-    for r in gail_modes["runs"]:
-        if r["task"] == task and r["curve"]["steps"]:
-            out.setdefault("GAIL", []).append(np.array(list(zip(r["curve"]["steps"],
-                                                                r["curve"]["episode_return"]))))
-    return out, "coin-flip runs"
+    for row, name in (("dc", "DC"), ("gail", "GAIL")):
+        for c in table_one.curves(t1, task, row):
+            pts = [(x, y) for x, y in zip(c["steps"], c["episode_return"]) if y is not None]
+            if pts:
+                out.setdefault(name, []).append(np.array(pts))
+    return out, "table1"
 
 
 TASKS3 = ("reacher4", "reacher2", "halfcheetah2")
@@ -578,13 +565,8 @@ plt.show()
 # %%
 fig, axes = plt.subplots(1, 3, figsize=(13.2, 3.2))
 for ax, task in zip(axes, TASKS3):
-    runs = table_one.curves(t1, task, "dc") if t1 is not None else []
+    runs = table_one.curves(t1, task, "dc")
     source = "table1"
-    if not runs:
-        runs = [{"seed": r["seed"], "param_change_l1": r["curve"]["param_change_l1"],
-                 "iterations": r["config"]["iterations"]}
-                for r in dc_modes["runs"] if r["task"] == task]
-        source = "coin-flip runs"
     for r in runs:
         change = np.array([np.nan if v is None else v for v in r["param_change_l1"]])
         ax.plot(np.arange(1, len(change) + 1), change, alpha=0.7, linewidth=0.8)

@@ -356,3 +356,34 @@ def test_a_table3_cell_gives_the_same_numbers_with_its_start_cached_or_fresh():
     assert len(table1._im._STARTS) == 1
     warm, _ = table3.run_cell(cell, needs)
     assert cells.split_timing(cold)[0] == cells.split_timing(warm)[0]
+
+
+def test_against_start_counts_collapses_and_falls_per_seed_and_words_the_pair(monkeypatch):
+    """A constructed coin grid: GAIL sends every episode of seeds 0-6 to red (its start
+    splits red/blue) and ends below its start in those seeds; the line counts 7 collapsed
+    seeds against the start's 0, 7 of 10 below the start, and words the paired EMD 'higher'."""
+    def recs():
+        rng = np.random.default_rng(0)
+        out = []
+        for s in range(10):
+            collapsed = s < 7
+            start = {"emd": 0.1, "kl": 1, "rkl": 1, "scaled_return": 0.6, "return": 1,
+                     "return_std": 0, "mode_shares": {"red": 0.5, "blue": 0.4, "none": 0.1}}
+            final = {**start, "emd": 0.1 + (0.05 if collapsed else 0) + rng.normal(0, 0.002),
+                     "scaled_return": 0.4 if collapsed else 0.7,
+                     "mode_shares": ({"red": 0.9, "blue": 0.0, "none": 0.1} if collapsed
+                                     else {"red": 0.5, "blue": 0.4, "none": 0.1})}
+            r = _record("gail-coin", "reacher2", s, start, final)
+            r["config"]["eval_episodes"] = 50
+            out.append(r)
+        return out
+    monkeypatch.setattr(table1._im, "reference_shares", lambda r: {"reacher2": {
+        "red": 0.5, "blue": 0.5, "none": 0.0}})
+    agg = table1.aggregate(recs(), LESSON)
+    (line,) = table_one.against_start(agg, "gail-coin", "bc-coin")
+    assert "(10 seeds)" in line
+    assert "collapsed seeds gail-coin 7, its start 0" in line
+    assert "below its own start in 7 of 10 seeds" in line
+    assert "EMD gail-coin - bc-coin" in line and "*higher*" in line.split("EMD")[1]
+    assert "from 0.40 to 0.70" in line
+    assert table_one.against_start(agg, "dc-coin", "bc-coin") == []   # a row not run: no line

@@ -69,10 +69,9 @@ Implementation details, each a field of :class:`GAILConfig`:
 * The BC warm start (``bc_warm_start``, used by the benchmark through
   :func:`dc_lesson.bc.warm_start`): GAIL starts from BC's policy, whose mean network it keeps.
 * The start's noise (``start_log_std``; None, i.e. kept, by default, and
-  ``TUNED_START_LOG_STD`` = -2 in :func:`preset`, which the cell studies use): a given
-  Gaussian start policy's log-std is set to it before the first iteration (the stored
-  bench files of chapter 02, ``gail_modes.json`` and ``gail_lr.json``, predate it and ran
-  at -0.5).  The warm start arrives with PPO's -0.5 (a std of
+  ``TUNED_START_LOG_STD`` = -2 in :func:`preset`, which ``table1`` and ``table3`` use): a
+  given Gaussian start policy's log-std is set to it before the first iteration (the
+  ``gail_lr`` cells and chapter 02's live run keep the warm start's -0.5).  The warm start arrives with PPO's -0.5 (a std of
   0.61, what DC and the other baselines explore with), ten times the spread of the reacher
   experts' actions (std about 0.05): an (s, a) discriminator then separates learner from
   expert by the action noise alone, and the reward teaches nothing about states.  At -2

@@ -19,10 +19,10 @@ mode shares from the reference's), paired with the same seed's BC start, and the
 the share of seeds collapsed (largest share at least ``COLLAPSE_SHARE``) beside the start's and
 the multinomial floor of TV for that many episodes.
 
-The numbers come from the studies' aggregates (``dc-lesson sweep dc_modes`` etc.: cells against
-the fresh expert reference).  While those have not run, the whole-grid files of ``dc-lesson
-bench`` stand in (:func:`legacy_observations`: 3 seeds, reference = all demonstrations); the
-evidence says which.  ``tests/test_claims_rules.py`` checks the rules on constructed records.
+The numbers come from the studies' aggregates (``dc-lesson sweep table1`` and the hopper
+ablations: cells against the fresh expert reference); :func:`legacy_observations` reads a
+record of ``dc-lesson bench`` (3 seeds, reference = all demonstrations) for a reader who runs
+one.  ``tests/test_claims_rules.py`` checks the rules on constructed records.
 """
 
 from __future__ import annotations
@@ -154,31 +154,19 @@ def legacy_observations(dc=None, gail=None, ablation=None, dc_lr=None, gail_lr=N
 
 
 def observations() -> tuple[list, dict, str]:
-    """``(observations, reference mode shares per task, where they came from)``: the cell
-    aggregates when ``dc_modes.json`` is one, else the whole-grid files."""
-    dc = _load("dc_modes.json")
-    if dc and "cells" in dc:
-        from dc_lesson.experiments.studies import _imitation
-        obs = [o for o in dc["observations"] if o["row"] != "expert"]
-        for name, keep in (("gail_modes.json", lambda r: r == "gail"),
-                           ("dc_ablation.json", lambda r: r.startswith("dc-")),
-                           ("dc_lr.json", lambda r: r.startswith("dc-lr=")),
-                           ("gail_lr.json", lambda r: r.startswith("gail-lr="))):
-            rec = _load(name)
-            if rec and "cells" in rec:
-                obs += [{**o, "task": "lr"} if name.endswith("lr.json") else o
-                        for o in rec["observations"] if keep(o["row"])]
-        tasks = [{"cell": {"task": t}} for t in dict.fromkeys(o["task"] for o in obs)
-                 if t != "lr"]
-        return obs, _imitation.reference_shares(tasks), "cell aggregates, fresh expert reference"
-    obs = legacy_observations(dc, _load("gail_modes.json"), _load("dc_ablation.json"),
-                              _load("dc_lr.json"), _load("gail_lr.json"))
-    ref = {}
-    for r in (dc or {}).get("runs", []):
-        info = (_load("gail_modes.json") or {}).get("task_info", {}).get(r["task"], {})
-        if info.get("demo_mode_shares"):
-            ref[r["task"]] = info["demo_mode_shares"]
-    return obs, ref, "whole-grid files (3 seeds; reference = all demonstrations)"
+    """``(observations, reference mode shares per task, where they came from)`` of the hopper
+    ablation aggregates (rows ``dc-loops=L``, ``dc-update=admm``, ``dc-lr=X`` and
+    ``gail-lr=X``, the learning-rate rows on task ``lr``); :func:`verdicts` joins the
+    multi-mode rows of the ``table1`` aggregate to them."""
+    obs = []
+    for name, keep in (("dc_ablation.json", lambda r: r.startswith("dc-")),
+                       ("dc_lr.json", lambda r: r.startswith("dc-lr=")),
+                       ("gail_lr.json", lambda r: r.startswith("gail-lr="))):
+        rec = _load(name)
+        if rec and "cells" in rec:
+            obs += [{**o, "task": "lr"} if name.endswith("lr.json") else o
+                    for o in rec["observations"] if keep(o["row"])]
+    return obs, {}, "cell aggregates, fresh expert reference"
 
 
 def table1_observations(actions: str = "mean") -> tuple[list, dict, str] | None:
@@ -267,16 +255,14 @@ def verdicts(obs=None, reference_shares=None, source: str = "",
     return out
 
 
-# -- our Table I from the whole-grid files (chapter 04 until the cell studies have run) -----------
+# -- a Table I from the whole-grid records of `dc-lesson bench dc` and `bench gail` ---------------
 
 def table_one(dc_record: dict | None = None, gail_record: dict | None = None) -> list[dict]:
     """The rows of our Table I: per task, BC (DC's start), GAIL and DC, with mean and std over
     seeds of the scaled return, EMD, KL and RKL, and the mean mode shares.
 
-    BC's row comes from ``dc_modes.json`` (the start of the DC runs; GAIL's start is the same
-    warm start, trained with the same seeds)."""
-    dc_record = dc_record or _load("dc_modes.json")
-    gail_record = gail_record or _load("gail_modes.json")
+    BC's row comes from the DC record (the start of the DC runs; GAIL's start is the same
+    warm start, trained with the same seeds).  The book reads ``table1`` instead."""
     rows = []
     for s in (dc_record or {}).get("summary", []):
         rows.append({**s, "method": s["method"].upper()})

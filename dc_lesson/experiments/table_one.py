@@ -198,21 +198,74 @@ def rank_agreement(rec: dict, task: str, measure: str = "emd", actions: str = "m
             if len(shared) >= 3 else None}
 
 
-def features(rec: dict, task: str, row: str, which: str = "final") -> "np.ndarray | None":
+def features(rec: dict, task: str, row: str, which: str = "final",
+             seed: int | None = None) -> "np.ndarray | None":
     """The mode features of ``row`` on ``task`` (mean action), pooled over the seeds that have
-    run, from the cells of the study's current grid at the aggregate's budget; ``row="expert"``
-    gives the fresh reference's.  ``which``: ``"final"`` or ``"start"`` (an RL row's BC start).
-    None when no cell has them."""
+    run (or of one ``seed``), from the cells of the study's current grid at the aggregate's
+    budget; ``row="expert"`` gives the fresh reference's.  ``which``: ``"final"`` or
+    ``"start"`` (an RL row's BC start); ``row="ROW:start"`` says the same in the row.  None
+    when no cell has them."""
     import numpy as np
     from dc_lesson import budget as _budget
     from dc_lesson.experiments import cells as _cells, protocol, studies
     if row == "expert":
         ref = protocol.reference_cell(task)
         return _cells.read_features(ref.path())["features"] if ref.path().exists() else None
+    row, _, part = row.partition(":")
+    which = part or which
     grid = studies.get("table1").grid(_budget.get(rec["budget"]))
     parts = [_cells.read_features(c.path())[which] for c in grid
-             if c.study == "table1" and c.task == task and c.row == row and c.path().exists()]
+             if c.study == "table1" and c.task == task and c.row == row and c.path().exists()
+             and (seed is None or c.seed == seed)]
     return np.concatenate(parts) if parts else None
+
+
+def final_logs(rec: dict, row: str) -> list[dict]:
+    """Per cell of ``row`` that has run: task, seed, its training log's last tenth averaged
+    (``log_final``: a GAIL row's discriminator accuracies and reward, a DC row's ADMM terms)
+    and the cell's wall seconds."""
+    from dc_lesson import budget as _budget
+    from dc_lesson.experiments import cells as _cells, studies
+    out = []
+    for c in studies.get("table1").grid(_budget.get(rec["budget"])):
+        if c.study == "table1" and c.row == row and c.path().exists():
+            r = _cells.read_record(c.path())
+            out.append({"task": c.task, "seed": c.seed, **r["result"].get("log_final", {}),
+                        "wall_seconds": r["provenance"]["wall_seconds"]})
+    return sorted(out, key=lambda d: (TASKS.index(d["task"]), d["seed"]))
+
+
+def against_start(rec: dict, row: str, start: str, actions: str = "mean") -> list[str]:
+    """One rendered Markdown line per task on which ``row`` has run: how many seeds of it and
+    of its ``start`` collapsed (``claims.largest_share`` at least ``COLLAPSE_SHARE``), the
+    share of episodes arriving at no mode, ``row - start`` paired on EMD and on scaled return
+    with the control word, in how many seeds ``row`` ended below its own start, and the
+    spread of its scaled return over seeds."""
+    obs = rec[actions]["observations"]
+    out = []
+    for task in TASKS:
+        a = {o["seed"]: o for o in obs if o["task"] == task and o["row"] == row}
+        b = {o["seed"]: o for o in obs if o["task"] == task and o["row"] == start}
+        seeds = sorted(set(a) & set(b))
+        if not seeds:
+            continue
+        top = lambda rows: sum((claims.largest_share(rows[s]) or 0) >= claims.COLLAPSE_SHARE
+                               for s in seeds)
+        none = lambda rows: statistics.mean((rows[s].get("mode_shares") or {}).get("none", 0)
+                                            for s in seeds)
+        ret = [a[s]["scaled_return"] for s in seeds]
+        below = sum(a[s]["scaled_return"] < b[s]["scaled_return"] for s in seeds)
+        n = f"{len(seeds)} seed" + ("s" if len(seeds) > 1 else "")
+        bits = [f"**`{task}`** ({n}): collapsed seeds {row} {top(a)}, its start {top(b)}; "
+                f"episodes arriving at no mode {none(a):.2f} against {none(b):.2f}"]
+        e = paired(rec, row, start, task, actions)
+        for m, label in (("emd", "EMD"), ("scaled_return", "scaled return")):
+            if e and m in e:
+                bits.append(f"{label} {row} - {start} {fmt_entry(e, m, 3)}, *{word(e, m)}*")
+        bits.append(f"{row} below its own start in {below} of {len(seeds)} seeds, its scaled "
+                    f"return from {min(ret):.2f} to {max(ret):.2f} over seeds")
+        out.append("* " + "; ".join(bits) + ".")
+    return out
 
 
 MODE_FEATURES = (("reacher4", 4), ("reacher2", 2), ("halfcheetah2", 0))   # (task, targets)
@@ -220,8 +273,8 @@ MODE_FEATURES = (("reacher4", 4), ("reacher2", 2), ("halfcheetah2", 0))   # (tas
 
 def coverage_figures(rec: dict, names: dict, what: str, size: float = 3.0):
     """The paper's Figures 1 and 7 from the cells: for each multi-mode task, where each row of
-    ``names`` (row -> label) goes under its mean action, seeds pooled; the label ``"BC"``
-    shows the RL rows' common start (read from DC's cells).  Yields each figure as it is
+    ``names`` (row -> label; ``"ROW:start"`` for a row's start) goes under its mean action,
+    seeds pooled; the label ``"BC"`` shows the RL rows' common start (read from DC's cells).  Yields each figure as it is
     drawn (a reacher's fingertip heat maps, halfcheetah2's velocity densities); tasks with
     fewer than two rows that have run are skipped.  ``what`` completes the title."""
     import matplotlib.pyplot as plt
@@ -314,5 +367,6 @@ def costs(rec: dict, since: str | None = None, until: str | None = None) -> list
 
 
 __all__ = ["CONTROLS", "PAPER_TABLE_I", "RESULT", "ROWS", "TASKS", "beside_paper", "controls",
-           "costs", "coverage_figures", "curves", "features", "summary_lines",
+           "against_start", "costs", "coverage_figures", "curves", "features",
+           "final_logs", "summary_lines",
            "load", "paired", "rank_agreement", "status", "table", "word"]

@@ -4,10 +4,10 @@
 |---|---|---|
 | ``reference`` | (read by the others) | fresh expert episodes per task, collected once |
 | ``bc_demos`` | ``bc_demos.json`` | BC per task, demonstration count and seed; the expert row |
-| ``bc_drift`` | ``bc_drift_cells.json`` (chapter 01 still reads the bench file ``bc_drift.json``) | BC's distance from the demonstrated states, and the expert's |
-| ``gail_modes`` | ``gail_modes.json`` (not run as cells yet: the file is the bench's, chapter 02 reads it; ``table1`` holds GAIL on these tasks at 10/5 seeds) | BC warm start and GAIL per multi-mode task and seed |
+| ``bc_drift`` | ``bc_drift_cells.json`` (chapter 01) | BC's distance from the demonstrated states, and the expert's |
+| ``gail_modes`` | ``gail_modes.json`` (not run: ``table1``'s ``gail`` and ``gail-coin`` rows hold this at the same seeds and chapter 02 reads them; the module gives ``gail_lr`` its cells) | BC warm start and GAIL per multi-mode task and seed |
 | ``gail_lr`` | ``gail_lr.json`` | GAIL per learning rate and seed on hopper (11 demonstrations) |
-| ``dc_modes`` | ``dc_modes.json`` (likewise; ``table1`` holds DC) | BC warm start and DC per multi-mode task and seed |
+| ``dc_modes`` | ``dc_modes.json`` (not run: ``table1``'s ``dc`` and ``dc-coin`` rows hold it; the module gives the hopper ablations their cells) | BC warm start and DC per multi-mode task and seed |
 | ``dc_ablation`` | ``dc_ablation.json`` | DC's loop counts, one long loop and consensus ADMM on hopper (11 demonstrations), every seed |
 | ``dc_lr`` | ``dc_lr.json`` | DC per learning rate and seed on hopper (11 demonstrations) |
 | ``table1`` | ``table1.json`` | every learner and control on the multi-mode tasks, both evaluations |
