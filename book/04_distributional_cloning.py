@@ -387,7 +387,7 @@ display(pd.DataFrame(rows).fillna(""))
 # `dc-lesson sweep table1` runs every learner and control of `experiments.studies.table1` on
 # the three multi-mode tasks as cells: 10 seeds on the reachers, 5 on `halfcheetah2`, 18
 # demonstrations, 300,000 interactions after the BC warm start, 50 fresh evaluation episodes
-# scored against 100 fresh expert episodes (not the training demonstrations), each policy
+# scored against 25 fresh expert episodes (not the training demonstrations), each policy
 # evaluated with its mean action and with sampled actions. Rows of one seed share their BC
 # start, so every comparison below is *paired by seed*, with a 95% bootstrap interval of the
 # per-seed differences. The controls isolate what each part of DC does: BC trained on all 18
@@ -659,4 +659,4 @@ print(f"this chapter ran in {time.perf_counter() - CHAPTER_START:.0f} s at budge
 #    evaluate with `evaluation.evaluate_both`. Do the mode shares change between the mean
 #    action and sampled actions? What would a policy need to reproduce the expert's
 #    25/25/25/25? Try `BCConfig(policy="mixture")` and compare the mode TV of the two
-#    (the `bc-mix-coin` row of Table I is this experiment over 10 seeds).
+#    (the `bc-mix-coin` row of Table I is this experiment over 5 seeds).

@@ -23,7 +23,11 @@ def test_every_row_is_listed_for_every_task_and_seed_with_the_core_first():
     for row in table1.ROWS:
         for task in ("reacher4", "reacher2", "halfcheetah2"):
             seeds = sorted(c.seed for c in learners if c.row == row and c.task == task)
-            assert seeds == list(LESSON.seeds_for(task)), (row, task)
+            want = LESSON.seeds_for(task)
+            if table1.ROWS[row].mixture:   # beyond the paper, and costly: the first five
+                want = want[:LESSON.table1_mixture_seeds]
+                assert len(want) == 5
+            assert seeds == list(want), (row, task)
     stages = [c.stage for c in learners]
     assert stages == sorted(stages), "a sweep runs stage by stage: the list is in stage order"
     first = [c for c in learners if c.stage == 1]

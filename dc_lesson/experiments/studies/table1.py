@@ -39,7 +39,9 @@ row                     stage  what it is
                                with the seeds of the rest of the table
 ======================  =====  ==============================================================
 
-Choices: the mixture DC starts from the mixture BC with its component spreads reset to
+Choices: the mixture rows run on the first ``budget.table1_mixture_seeds`` seeds (5 at
+``lesson``: the fewest a paired verdict accepts; they cost two to three times a Gaussian row);
+the mixture DC starts from the mixture BC with its component spreads reset to
 e^-0.5 (state-independent), as the Gaussian warm start's log-std is reset, so PPO explores;
 the expert row is evaluated once (its mean action is its behaviour).
 """
@@ -149,11 +151,18 @@ def _cell(row: Row, task: str, seed: int, b) -> cells.Cell:
     return dataclasses.replace(c, stage=row.stage)
 
 
+def seeds(row: Row, task: str, b) -> tuple[int, ...]:
+    """The row's seeds on ``task``: the budget's, or its first ``table1_mixture_seeds`` for
+    the mixture rows (``budget.Budget.table1_mixture_seeds`` says why)."""
+    all_seeds = b.seeds_for(task)
+    return all_seeds[:b.table1_mixture_seeds] if row.mixture else all_seeds
+
+
 def cells_at(b) -> list[cells.Cell]:
     """The expert row first, then seed-major within a stage: an interrupted stage has every
     row at its first seeds."""
     rows = sorted(ROWS.values(), key=lambda r: r.stage)
-    learners = [_cell(r, t, s, b) for r in rows for t in _im.TASKS for s in b.seeds_for(t)]
+    learners = [_cell(r, t, s, b) for r in rows for t in _im.TASKS for s in seeds(r, t, b)]
     learners.sort(key=lambda c: (c.stage, c.seed, _im.TASKS.index(c.task)))
     return _im.expert_rows(NAME, _im.TASKS, b) + learners   # the floor first: it is cheap
 
