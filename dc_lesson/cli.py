@@ -12,7 +12,8 @@
   dc-lesson perf WHAT                   speed benchmarks (dc-lesson perf -h lists them)
   dc-lesson bench WHAT --out FILE       the studies behind the book's stored results
                                         (dc-lesson bench -h describes each)
-  dc-lesson sweep STUDY [--dry-run]     a study's cells on Ray (resumable, accumulating)
+  dc-lesson sweep STUDY [--dry-run]     a study's cells on Ray (resumable, accumulating);
+                                        STUDY all: every study (--dry-run: the ledger)
   dc-lesson aggregate STUDY             its cells -> data/results/STUDY.json (intervals)
 
 Sizes follow the budget: set DC_LESSON_BUDGET to smoke (seconds, numbers mean nothing),
@@ -347,6 +348,8 @@ def cmd_sweep(args) -> int:
     from dc_lesson import budget
     from dc_lesson.experiments import aggregate, cells, studies, sweep
     b = budget.get(args.budget) if args.budget else budget.current()
+    if args.study == "all":
+        return _sweep_all(args, b)
     try:
         study = studies.get(args.study)
         if args.dry_run:
@@ -365,6 +368,32 @@ def cmd_sweep(args) -> int:
           f"{report.wall_seconds:.0f} s" + (f"; wrote {report.aggregate}" if report.aggregate
                                              else ""))
     return 1 if report.failed else 0
+
+
+def _sweep_all(args, b) -> int:
+    """``dc-lesson sweep all``: every study in turn (``--dry-run``: the ledger of the whole
+    grid, done and left, with its CPU time)."""
+    from dc_lesson.experiments import aggregate, cells, studies, sweep
+    workers = args.cpus or os.cpu_count() or 1
+    if args.only:
+        print("dc-lesson: --only selects cells of one study; name the study instead of 'all'",
+              file=sys.stderr)
+        return 2
+    if args.dry_run:
+        print(sweep.format_ledger(sweep.ledger(b, workers=workers), b, workers))
+        return 0
+    failed = 0
+    for name in studies.BOOK:
+        try:
+            report = sweep.run(name, b, address=args.address, cpus=args.cpus,
+                               command=_command_line())
+        except (sweep.SweepError, cells.CellError, aggregate.AggregateError) as e:
+            print(f"dc-lesson: {name}: {e}", file=sys.stderr)
+            return 2
+        failed += len(report.failed)
+        print(f"sweep {name} ({report.budget}): {report.ran} run, {report.skipped} already "
+              f"done, {len(report.failed)} failed")
+    return 1 if failed else 0
 
 
 def cmd_aggregate(args) -> int:
@@ -477,7 +506,8 @@ def build_parser() -> argparse.ArgumentParser:
                         "(default: GAILConfig's)")
     s.set_defaults(func=cmd_bench)
     s = sub.add_parser("sweep", help="run a study's cells on Ray (skips finished cells)")
-    s.add_argument("study", help="a study of dc_lesson.experiments.studies (bc_demos, ...)")
+    s.add_argument("study", help="a study of dc_lesson.experiments.studies (bc_demos, ...), "
+                   "or all (every study in turn; with --dry-run the whole grid's ledger)")
     s.add_argument("--budget", default=None, help="smoke | lesson | paper (default: "
                    "DC_LESSON_BUDGET)")
     s.add_argument("--only", nargs="+", default=(), metavar="KEY=VALUE",

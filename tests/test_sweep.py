@@ -156,3 +156,22 @@ def test_a_new_row_is_estimated_from_its_learners_cost_per_interaction():
     costs[("dc-loops=4", "hopper", "lesson")] = [300.0]           # measured: its own row wins
     assert sweep.estimate(four, costs, "lesson", rates) == 300.0
     assert sweep.interactions({"steps": 0}) is None               # BC: no interactions
+
+
+def test_the_ledger_counts_each_cell_once_and_sums_the_done_cells_wall_time(uninterrupted):
+    """`dc-lesson sweep all --dry-run`: every cell of the book's studies once (a reference two
+    studies read is counted in the first), the done ones with their records' wall time; the
+    superseded studies are not in it."""
+    root, _ = uninterrupted
+    rows = {r["study"]: r for r in sweep.ledger(TINY, root, workers=2)}
+    assert set(rows) == set(studies.BOOK) and not set(studies.SUPERSEDED) & set(rows)
+    done = list(pathlib.Path(root).glob("*/*/*.json"))
+    assert sum(r["done"] for r in rows.values()) == len(done) > 0
+    wall = sum(json.loads(p.read_text())["provenance"]["wall_seconds"] for p in done)
+    assert sum(r["cpu_done"] for r in rows.values()) == pytest.approx(wall)
+    unique = {f"{c.study}/{c.task}/{c.name}" for n in studies.BOOK
+              for c in studies.get(n).grid(TINY)}
+    assert sum(r["cells"] for r in rows.values()) == len(unique)
+    assert all(r["left"] == r["cells"] - r["done"] for r in rows.values())
+    text = sweep.format_ledger(list(rows.values()), TINY, 2)
+    assert "on 2 worker(s)" in text and text.count("\n") == len(rows) + 3

@@ -126,63 +126,6 @@ def measured_rates(root=None) -> dict[tuple, list[float]]:
     return out
 
 
-def legacy_costs(results=None) -> dict[tuple, list[float]]:
-    """Per-run wall seconds from the whole-grid result files that ``dc-lesson bench`` wrote
-    before the cells (a file that is already an aggregate is skipped), keyed as
-    :func:`measured_costs`: the estimate of a study no cell of which has run yet."""
-    import json
-    base = pathlib.Path(results or _cells.cells_root().parent)
-    out: dict[tuple, list[float]] = {}
-
-    def read(name):
-        try:
-            r = json.loads((base / name).read_text())
-        except (OSError, ValueError):
-            return None
-        return None if "cells" in r else r
-
-    def add(row, task, budget, s):
-        out.setdefault((row, task, budget), []).append(float(s))
-    if r := read("bc_demos.json"):
-        for x in r["runs"]:
-            add("bc", x["task"], r["budget"], x["train_seconds"] + x["eval_seconds"]
-                + x["measure_seconds"])
-    if r := read("gail_modes.json"):
-        for x in r["runs"]:
-            add("gail", x["task"], r["budget"], x["wall_seconds"])
-    if r := read("dc_modes.json"):
-        for x in r["runs"]:
-            add("dc", x["task"], r["budget"], x["bc"]["seconds"] + x["dc"]["train_seconds"])
-    if r := read("gail_lr.json"):
-        bc = {x["seed"]: x["seconds"] for x in r["bc"]["runs"]}
-        for x in r["runs"]:
-            add(f"gail-lr={x['lr']:g}", r["task"], r["budget"], x["seconds"] + bc[x["seed"]])
-    if r := read("dc_lr.json"):
-        for x in r["runs"]:
-            add(f"dc-lr={x['lr']:g}", r["task"], r["budget"],
-                x["bc"]["seconds"] + x["dc"]["train_seconds"])
-    if r := read("dc_ablation.json"):
-        for x in r["loops"]:
-            row = ("dc-loops=" + x["label"].split("= ")[1] if x["label"].startswith("L =")
-                   else "dc-loops=1-long")
-            add(row, r["task"], r["budget"], x["bc"]["seconds"] + x["dc"]["train_seconds"])
-        for x in r["admm"]:
-            add("dc-update=admm", r["task"], r["budget"],
-                x["bc"]["seconds"] + x["dc"]["train_seconds"])
-    if r := read("bc_drift.json"):
-        per = r["wall_seconds"] / max(1, len(r["per_seed"])) / (len(r["demo_counts"]) + 1)
-        for x in r["per_seed"]:
-            for row in ("bc", "expert"):
-                add(row, x["task"], r["budget"], per)
-    if r := read("softflow_fit.json"):
-        for x in r["toy"]["runs"]:
-            add(f"softflow-sigma={x['sigma_max']:g}", "circle", r["budget"], x["seconds"])
-        for task, v in r["tasks"].items():
-            for x in v["runs"]:
-                add(f"softflow-sigma={x['sigma_max']:g}", task, r["budget"], x["seconds"])
-    return out
-
-
 def estimate(cell: _cells.Cell, costs: dict, budget_name: str,
              rates: dict | None = None) -> float | None:
     """The median measured wall time of cells like this one (same row, task and budget); else,
@@ -209,7 +152,7 @@ def _fmt_s(s: float | None) -> str:
 def plan(study: _cells.Study, b: _budget.Budget, only=(), root=None, workers: int = 1) -> dict:
     """What a sweep would do: every cell, done or not, the estimated cost of the rest."""
     grid = select(study.grid(b), only)
-    costs = {**legacy_costs(), **measured_costs(root)}   # cells win over the old files
+    costs = measured_costs(root)
     todo = [c for c in grid if not _cells.is_done(c, root)]
     rates = measured_rates(root)
     est = [estimate(c, costs, b.name, rates) for c in todo]
@@ -238,6 +181,48 @@ def format_plan(study: _cells.Study, b: _budget.Budget, p: dict, workers: int) -
     lines.append(f"estimated cost: {_fmt_s(p['cpu_seconds'])} of CPU{unknown}; about "
                  f"{_fmt_s(p['wall_seconds'])} of wall time on {workers} worker(s)")
     lines.append("to run it: " + b.sweep_command.replace("STUDY", study.name))
+    return "\n".join(lines)
+
+
+def ledger(b: _budget.Budget, root=None, workers: int = 2) -> list[dict]:
+    """The whole grid at budget ``b``, study by study (:data:`studies.BOOK`): its cells, how
+    many are done, the CPU seconds the done ones took (their records' wall times: one worker,
+    one torch thread each, on whichever machine ran them) and the estimated CPU seconds of the
+    rest (:func:`plan`).  A cell two studies share (the fresh expert reference) is counted in
+    the first.  ``workers`` divides the CPU seconds into wall time."""
+    from dc_lesson.experiments import studies
+    costs, rates = measured_costs(root), measured_rates(root)
+    seen: set[str] = set()
+    out = []
+    for name in studies.BOOK:
+        grid = [c for c in studies.get(name).grid(b)
+                if f"{c.study}/{c.task}/{c.name}" not in seen]
+        seen.update(f"{c.study}/{c.task}/{c.name}" for c in grid)
+        done = [c for c in grid if _cells.is_done(c, root)]
+        cpu_done = sum(_cells.read_record(c.path(root))["provenance"]["wall_seconds"]
+                       for c in done)
+        est = [estimate(c, costs, b.name, rates) for c in grid if not _cells.is_done(c, root)]
+        out.append({"study": name, "cells": len(grid), "done": len(done),
+                    "cpu_done": cpu_done, "left": len(est),
+                    "cpu_left": sum(e for e in est if e is not None),
+                    "unknown": sum(e is None for e in est)})
+    return out
+
+
+def format_ledger(rows: list[dict], b: _budget.Budget, workers: int) -> str:
+    lines = [f"the book's whole grid at budget {b.name} (CPU time: one worker, one torch thread "
+             f"per cell)",
+             f"{'study':<14}{'cells':>7}{'done':>7}{'CPU done':>11}{'left':>7}{'CPU left':>11}"]
+    for r in rows:
+        unknown = f" + {r['unknown']} unmeasured" if r["unknown"] else ""
+        lines.append(f"{r['study']:<14}{r['cells']:>7}{r['done']:>7}{_fmt_s(r['cpu_done']):>11}"
+                     f"{r['left']:>7}{_fmt_s(r['cpu_left']):>11}{unknown}")
+    done, left = sum(r["cpu_done"] for r in rows), sum(r["cpu_left"] for r in rows)
+    lines.append(f"{'all':<14}{sum(r['cells'] for r in rows):>7}"
+                 f"{sum(r['done'] for r in rows):>7}{_fmt_s(done):>11}"
+                 f"{sum(r['left'] for r in rows):>7}{_fmt_s(left):>11}")
+    lines.append(f"on {workers} worker(s): {_fmt_s(done / workers)} of wall time spent, about "
+                 f"{_fmt_s(left / workers)} left, {_fmt_s((done + left) / workers)} in all")
     return "\n".join(lines)
 
 
@@ -378,5 +363,6 @@ def _eta(left, walls, costs, b, workers) -> float | None:
 
 
 __all__ = ["ONLY_KEYS", "SweepError", "SweepReport", "check_writable", "estimate", "execute",
-           "format_plan", "interactions", "legacy_costs", "measured_costs", "measured_rates",
+           "format_plan", "interactions", "ledger", "format_ledger", "measured_costs",
+           "measured_rates",
            "plan", "run", "select", "start_ray"]
