@@ -31,9 +31,9 @@
 # 1. derives GAIL's objective and reward, with the sign convention spelled out;
 # 2. says why the adversarial game is unstable, and why nothing in it asks for every mode;
 # 3. puts the pseudo-code beside the library's code (`dc_lesson.gail`), and trains GAIL live;
-# 4. reads the stored benchmark: BC (GAIL's warm start) and GAIL on `reacher4`, `reacher2`
-#    and `halfcheetah2`, three seeds each, with the mode-coverage plots (the paper's Figures 1,
-#    7 and 10), the Table I measures and the learning curves;
+# 4. reads the stored cells: BC (GAIL's warm start) and GAIL on the hidden-coin `reacher4`,
+#    `reacher2` and `halfcheetah2` (10, 10 and 5 seeds), with the mode-coverage plots (the
+#    paper's Figures 1, 7 and 10), the Table I measures and the learning curves;
 # 5. reads the learning-rate sweep's cells on Hopper (the paper's Figure 4, for GAIL);
 # 6. reports what GAIL did to the expert's modes here, and what in the set-up decides it.
 

@@ -28,12 +28,13 @@
 # 3. Algorithms 1 and 2 as pseudo-code beside `dc_lesson.dc`;
 # 4. every choice the paper leaves open, and ours;
 # 5. DC live on `reacher4`;
-# 6. the stored benchmarks: BC, GAIL and DC on `reacher4`, `reacher2`, `halfcheetah2` (the
-#    paper's Figures 1, 7, 10 and Table I), return against interactions (Figure 5) and the
-#    update's convergence (Figure 6) on them; the loop and learning-rate ablations (Figures
-#    3 and 4) and consensus ADMM run on Hopper in chapter 6, their verdicts quoted here;
+# 6. the stored cells: BC, GAIL and DC on the hidden-coin `reacher4`, `reacher2` and
+#    `halfcheetah2`, and why no Markov unimodal policy can follow that coin; the loop and
+#    learning-rate ablations (Figures 3 and 4) and consensus ADMM run on Hopper in chapter 6,
+#    their verdicts quoted here;
 # 7. Table I on experts a Markov policy can follow, with controls, both evaluations and
-#    paired intervals over seeds;
+#    paired intervals over seeds, and on its runs return against interactions (Figure 5)
+#    and the update's convergence (Figure 6);
 # 8. the paper's claims, one by one: reproduced, contradicted or inconclusive, on our ports.
 
 # %%
