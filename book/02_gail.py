@@ -370,8 +370,8 @@ if HAVE_COIN:
 #
 # The return of the stochastic training episodes by the task's reward (which GAIL never
 # sees), mean and range over the seeds, against environment steps; the dashed lines are the
-# mean-action evaluations of the BC start and of GAIL's final policy (means over seeds), for
-# scale. The stochastic policy's return can sit below BC's evaluation from the first step:
+# mean-action evaluations of the BC start and of GAIL's final policy (means over seeds), and
+# the black line the expert's fresh episodes, for scale. The stochastic policy's return can sit below BC's evaluation from the first step:
 # it acts with exploration noise.
 
 # %%
@@ -393,6 +393,8 @@ if HAVE_COIN:
             ax.axhline(np.mean([o["return"] for o in coin_obs
                                 if o["task"] == task and o["row"] == row]),
                        color=colour, linestyle="--", label=label)
+        expert = next(r for r in t1["mean"]["expert"] if r["task"] == task)
+        ax.axhline(expert["return_mean"], color="black", linewidth=0.8, label="expert")
         ax.set_title(task)
         ax.set_xlabel("environment steps")
     axes[0].set_ylabel("return")
