@@ -244,29 +244,27 @@ fig.tight_layout()
 plt.show()
 
 # %% [markdown]
-# What the stored cells show (`fit_record`: keys `toy.summary`,
-# `toy.cnf_minus_softflow` and `toy.runs[*].heldout_curve`, and the seed-0 images in
-# the toy cells' features; `tests/test_claims_softflow.py` checks every statement below against
-# those files):
-#
-# * **Off the circle SoftFlow wins on every seed.** At noise std 0.05 its held-out NLL is
-#   0.75 ± 0.14 nats against the plain CNF's 4.28 ± 0.53: better by 2.8 to 4.4 nats,
-#   depending on the seed. At noise 0.02 it is better by 0.7 to 1.4 nats.
-# * **Exactly on the circle the plain CNF wins on every seed**, by 0.4 to 1.6 nats
-#   (−1.84 ± 0.50 against −0.83 ± 0.10). Trained on clean points only, it piles its mass onto
-#   the curve (in the stored seed-0 images its density peaks at about 16, SoftFlow's at about
-#   5), which pays for test points that lie exactly there and costs dearly for points a
-#   little off it.
-# * **The curves show the squeeze happening.** The plain CNF's NLL on the circle ends at its
-#   lowest, but its NLL at noise 0.05 is lowest early (by step 240 on every seed) and then
-#   climbs by 2.2 to 4.2 nats to the end. SoftFlow's NLL at noise 0.05 also turns up late in
-#   training, but by less than half a nat.
-#
-# So the paper's premise holds here in the form that matters for a reward: around the data,
-# SoftFlow's density falls off gently where the plain CNF's falls off a cliff. It does not
-# hold in the form "SoftFlow is the better density of the data itself": on points exactly on
-# the manifold the plain CNF scores higher.
-#
+# What the stored cells show, rendered from `fit_record` (keys `toy.summary`,
+# `toy.cnf_minus_softflow`, `toy.runs[*].heldout_curve` and the seed-0 images in the toy
+# cells' features) by `studies.softflow_fit.toy_findings`, whose counting rules
+# `tests/test_claims_softflow.py` checks on constructed records:
+
+# %%
+findings = softflow_fit_study.toy_findings(FIT, FIT_ARRAYS)
+gap = FIT["toy"]["cnf_minus_softflow"]
+far = max((k for k in gap if float(k) > 0), key=float)
+both = all(g > 0 for g in gap[far]["per_seed"]) and all(g < 0 for g in gap["0"]["per_seed"])
+display(Markdown("\n".join(findings) + "\n\n" + (
+    "So the paper's premise holds here in the form that matters for a reward: around the "
+    "data, SoftFlow's density falls off gently where the plain CNF's falls off a cliff. It "
+    "does not hold in the form \"SoftFlow is the better density of the data itself\": on "
+    "points exactly on the manifold the plain CNF scores higher. Trained on clean points only, "
+    "the plain CNF piles its mass onto the curve, which pays for test points that lie exactly "
+    "there and costs dearly for points a little off it." if both else
+    "The seeds do not agree on which density is better on and off the circle: read the "
+    "counts above before the premise.")))
+
+# %% [markdown]
 #
 # ## SoftFlow on expert states: `reacher4` and `halfcheetah2`
 #
@@ -585,16 +583,23 @@ train = pd.DataFrame({k: {"ours steps/s": v["ours"]["steps_per_s"],
                       for k, v in bench["train"].items()}).T
 display(train.round(2))
 
+# %%
+lp = bench["log_prob"]
+default = next(v for k, v in lp.items() if k.endswith("[default]"))
+exact = next(v for k, v in lp.items() if "reference's solver" in k)
+ratios = [v["ratio"] for v in bench["train"].values()]
+display(Markdown(
+    f"The default (rk4 with step 0.25, trace at 4 quadrature nodes) evaluates "
+    f"{default['speedup']:.1f} times as many states per second as the naive reference, and "
+    f"its log-densities differ from the reference's by {default['mean_abs_diff']:.1e} nats "
+    f"on average (at most {default['max_abs_diff']:.3f}). With the reference's own solver "
+    f"(dopri5 at 1e-5) the hand-carried exact trace alone gives {exact['speedup']:.1f} "
+    f"times the naive speed with differences of {exact['mean_abs_diff']:.0e} nats on "
+    f"average, the solver's tolerance. Training gains {min(ratios):.2f} to "
+    f"{max(ratios):.2f} times per step: a training step's cost is dominated by "
+    f"backpropagation through the solver, not by the trace."))
+
 # %% [markdown]
-# The default (rk4 with step 0.25, trace at 4 quadrature nodes) evaluates about 6.2 times as
-# many states per second as the naive reference, and its log-densities differ from the
-# reference's by 4.8e-4 nats on average (at most 0.009). With the reference's own solver
-# (dopri5 at 1e-5) the hand-carried exact trace alone gives 1.7 times the naive speed with
-# differences of a few 1e-6 nats, the solver's tolerance. Training gains less, about 1.1
-# times per step, because a training step's cost is dominated by backpropagation through the
-# solver, not by the trace. These numbers are checked against the stored file by
-# `tests/test_book_claims.py`.
-#
 # ## What the paper left open, and what we chose
 #
 # | question | the paper | our choice |

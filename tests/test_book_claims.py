@@ -1,6 +1,7 @@
 """Claims the book's prose makes about stored results, checked against the result files."""
 
 import numpy as np
+import pytest
 
 from dc_lesson import tasks
 from dc_lesson.storage import read_result
@@ -59,19 +60,13 @@ def test_chapter03_softflow_speed_claims_hold_in_the_stored_benchmark():
     naive = lp["naive: autograd loop, dopri5 1e-5"]
     assert naive["speedup"] == 1.0 and naive["mean_abs_diff"] == 0.0
     default = lp["ours, rk4 0.25 + 4-node quadrature [default]"]
-    # "about 6.2 times as many states per second", "4.8e-4 nats on average (at most 0.009)"
-    assert round(default["speedup"], 1) == 6.2
-    assert round(default["states_per_s"] / naive["states_per_s"], 1) == 6.2
-    assert f"{default['mean_abs_diff']:.1e}" == "4.8e-04"
-    assert round(default["max_abs_diff"], 3) == 0.009
+    # the chapter renders the speed-ups and differences from this file; the file must agree
+    # with itself: a speed-up is the ratio of states per second, a train ratio of steps/s
+    assert default["speedup"] == pytest.approx(default["states_per_s"] / naive["states_per_s"])
     assert default["trace_evals"] == 4
-    # "the hand-carried exact trace alone gives 1.7 times ... differences of a few 1e-6 nats"
     same_solver = lp["ours, dopri5 1e-5 (the reference's solver)"]
-    assert round(same_solver["speedup"], 1) == 1.7
-    assert 1e-6 <= same_solver["mean_abs_diff"] < 1e-5
-    # "Training gains less, about 1.1 times per step"
+    assert same_solver["mean_abs_diff"] < 1e-5   # "the solver's tolerance"
     for row in record["train"].values():
-        assert round(row["ratio"], 1) == 1.1
         assert abs(row["ours"]["steps_per_s"] / row["naive vjp"]["steps_per_s"] - row["ratio"]) < 1e-9
     # the summary's "about 6 times faster ... at the same accuracy"
     assert 5.5 < default["speedup"] < 6.5 and default["mean_abs_diff"] < 1e-3
