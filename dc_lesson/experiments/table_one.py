@@ -274,9 +274,10 @@ MODE_FEATURES = (("reacher4", 4), ("reacher2", 2), ("halfcheetah2", 0))   # (tas
 def coverage_figures(rec: dict, names: dict, what: str, size: float = 3.0):
     """The paper's Figures 1 and 7 from the cells: for each multi-mode task, where each row of
     ``names`` (row -> label; ``"ROW:start"`` for a row's start) goes under its mean action,
-    seeds pooled; the label ``"BC"`` shows the RL rows' common start (read from DC's cells).  Yields each figure as it is
-    drawn (a reacher's fingertip heat maps, halfcheetah2's velocity densities); tasks with
-    fewer than two rows that have run are skipped.  ``what`` completes the title."""
+    seeds pooled; the label ``"BC"`` shows the RL rows' common start (read from DC's cells).
+    Yields each figure as it is drawn (a reacher's fingertip heat maps, halfcheetah2's
+    velocity densities); tasks with fewer than two rows that have run are skipped.  ``what``
+    completes the title."""
     import matplotlib.pyplot as plt
     from dc_lesson.viz import plots
     for task, k in MODE_FEATURES:
