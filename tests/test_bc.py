@@ -218,7 +218,7 @@ def test_warm_start_keeps_bcs_mean_and_resets_only_the_log_std():
     from dc_lesson.algorithms import bc
     policy, demos, log = bc.warm_start("reacher1", 3, seed=0, max_epochs=2)
     plain, _ = bc.train_bc(demos, bc.BCConfig(epochs=2, seed=0), progress=False)
-    obs = torch.from_numpy(demos.trajectories[0].observations[:50])
+    obs = torch.from_numpy(demos.trajectories[0].observations[:50].copy())
     assert torch.equal(policy.distribution(obs).mean, plain.distribution(obs).mean)
     assert torch.all(policy.log_std == bc.WARM_START_LOG_STD)
     assert not torch.all(plain.log_std == bc.WARM_START_LOG_STD)
