@@ -24,7 +24,8 @@ def test_every_row_is_listed_for_every_task_and_seed_with_the_core_first():
         for task in ("reacher4", "reacher2", "halfcheetah2"):
             seeds = sorted(c.seed for c in learners if c.row == row and c.task == task)
             want = LESSON.seeds_for(task)
-            if table1.ROWS[row].mixture:   # beyond the paper, and costly: the first five
+            if table1.ROWS[row].mixture or table1.ROWS[row].mixture_seeds:
+                # beyond the paper, and costly (or their control): the first five
                 want = want[:LESSON.table1_mixture_seeds]
                 assert len(want) == 5
             assert seeds == list(want), (row, task)
@@ -64,6 +65,12 @@ def test_each_control_changes_exactly_what_its_name_says():
     assert abs(lib["epochs"] * -(-18_000 // 32) - 50_000) < 18_000 // 32
     assert not lib["stop_on_others"] and lib["val_fraction"] == 0
     assert cfg["bc-mix"]["policy"] == "mixture" and cfg["bc-all"]["policy"] == "gaussian"
+    # bc-full-coin: the Gaussian twin of bc-mix-coin, trained alike on the same demonstrations
+    assert {k for k in cfg["bc-full-coin"] if cfg["bc-full-coin"][k] != cfg["bc-mix-coin"][k]} \
+        == {"policy"} and cfg["bc-full-coin"]["policy"] == "gaussian"
+    coin = {r: next(x for x in table1.cells_at(LESSON) if x.row == r and x.task == "reacher2"
+                    and x.seed == 0) for r in ("bc-full-coin", "bc-mix-coin")}
+    assert coin["bc-full-coin"].config["demos"] == coin["bc-mix-coin"].config["demos"]
     # the coin rows read other demonstrations, so their cells' configs (and hashes) differ
     c = {r: next(x for x in table1.cells_at(LESSON) if x.row == r and x.task == "reacher4"
                  and x.seed == 0) for r in ("dc", "dc-coin")}
@@ -391,3 +398,61 @@ def test_against_start_counts_collapses_and_falls_per_seed_and_words_the_pair(mo
     assert "EMD gail-coin - bc-coin" in line and "*higher*" in line.split("EMD")[1]
     assert "from 0.40 to 0.70" in line
     assert table_one.against_start(agg, "dc-coin", "bc-coin") == []   # a row not run: no line
+
+
+def _mix_rec(diffs_by_measure, n_seeds=5):
+    """A table1 aggregate with one paired entry ``bc-mix - bc-full`` on reacher4."""
+    from dc_lesson.evaluation import stats
+    entry = {"task": "reacher4", "n_demos": 18, "a": "bc-mix", "b": "bc-full",
+             "n_seeds": n_seeds, "seeds": list(range(n_seeds))}
+    rng = np.random.default_rng(0)
+    for m, d in diffs_by_measure.items():
+        x = rng.normal(0.5, 0.1, n_seeds)
+        entry[m] = stats.paired_diff(list(x + d + rng.normal(0, 0.005, n_seeds)),
+                                     list(x)).to_dict()
+    return {a: {"paired": [entry], "table": [], "expert": []} for a in ("mean", "sampled")}
+
+
+def test_the_mixture_words_turn_by_each_measures_direction():
+    from dc_lesson.experiments import table_one_mixture as tm
+    rec = _mix_rec({"mode_tv": -0.2, "scaled_return": -0.2, "emd": 0.0})
+    t = tm.tally(rec)[("bc-mix", "bc-full")]
+    assert t["mode_tv"]["better"] == ["reacher4"]          # lower TV is better
+    assert t["scaled_return"]["worse"] == ["reacher4"]     # lower return is worse
+    assert t["emd"]["no difference detected"] == ["reacher4"]
+    assert t["mode_tv"]["not run yet"] == ["reacher2", "halfcheetah2"]
+    few = tm.tally(_mix_rec({"mode_tv": -0.2}, n_seeds=3))[("bc-mix", "bc-full")]
+    assert few["mode_tv"] == {"too few seeds": ["reacher4"],
+                              "not run yet": ["reacher2", "halfcheetah2"]}
+    line = tm.lines(rec)[0]
+    assert "mode TV: better on 1 (reacher4)" in line and "scaled return: worse on 1" in line
+
+
+def test_mixture_shares_follow_the_experts_order_with_none_last():
+    from dc_lesson.experiments import table_one_mixture as tm
+    part = {"expert": [{"task": "reacher2", "row": "expert",
+                        "mode_shares_mean": {"red": 0.5, "blue": 0.5, "none": 0.0}}],
+            "table": [{"task": "reacher2", "row": "bc-mix",
+                       "mode_shares_mean": {"none": 0.2, "blue": 0.8}}]}
+    rec = {"mean": part}
+    assert list(tm.shares(rec, "reacher2", "bc-mix")) == ["red", "blue", "none"]
+    assert tm.shares(rec, "reacher2", "bc-mix") == {"red": 0.0, "blue": 0.8, "none": 0.2}
+    assert tm.shares(rec, "reacher2", "dc-mix") == {}
+
+
+def test_the_aggregate_pairs_the_mode_tv_per_seed(monkeypatch):
+    shares = {"reacher2": {"red": 0.5, "blue": 0.5, "none": 0.0}}
+    monkeypatch.setattr(table1._im, "reference_shares", lambda records: shares)
+    m = lambda tv_red: {"emd": 0.1, "kl": 0.1, "rkl": 0.1, "scaled_return": 0.5, "return": 1.0,
+                        "mode_shares": {"red": 0.5 + tv_red, "blue": 0.5 - tv_red,
+                                        "none": 0.0}}
+    recs = []
+    for s in range(5):
+        recs.append(_record("bc-mix", "reacher2", s, None, m(0.1)))
+        recs.append(_record("bc-full", "reacher2", s, None, m(0.3 + 0.01 * s)))
+    for r in recs:
+        r["config"]["eval_episodes"] = 50
+    out = table1.aggregate(recs, LESSON)
+    e = table_one.paired(out, "bc-mix", "bc-full", "reacher2")
+    assert e["mode_tv_diffs"] == pytest.approx([-0.2 - 0.01 * s for s in range(5)])
+    assert table_one.word(e, "mode_tv") == "lower"

@@ -42,6 +42,7 @@ ROWS = {
     "dc-mix": "DC from the mixture BC",
     "bc-coin": "BC 70/30, hidden-coin demonstrations",
     "dc-coin": "DC, hidden-coin demonstrations",
+    "bc-full-coin": "BC on all 18 to a fixed budget, hidden-coin demonstrations",
     "bc-mix-coin": "mixture BC, hidden-coin demonstrations",
     "bc-mixstart-coin": "mixture BC with spreads reset, hidden-coin demonstrations",
     "dc-mix-coin": "mixture DC, hidden-coin demonstrations",
@@ -77,7 +78,7 @@ CONTROLS = (
     ("dc-coin", "bc-coin", "emd", "on the hidden-coin demonstrations, does DC move its start "
      "towards the expert?"),
     ("gail-coin", "bc-coin", "emd", "on the hidden-coin demonstrations, does GAIL?"),
-    ("bc-mix-coin", "bc-coin", "emd", "can a mixture BC follow the hidden coin better?"),
+    ("bc-mix-coin", "bc-full-coin", "emd", "can a mixture BC follow the hidden coin better?"),
     ("dc-mix-coin", "dc-coin", "emd", "does the mixture help DC on the hidden coin?"),
 )
 

@@ -34,6 +34,9 @@ row                     stage  what it is
 ``dril`` ... ``gpril``  3      the paper's other baselines, from the same start
 ``bc-mix``, ``dc-mix``  4      the mixture policy (4 components): BC as bc-full, DC from it
 ``dc-coin`` ...         4      the hidden-coin demonstrations: DC, mixture BC and DC
+``bc-full-coin``        4      the Gaussian BC trained as bc-mix-coin is (all 18, fixed
+                               budget), on the mixture rows' seeds: the matched control
+                               that asks what the mixture itself changes on the coin
 ``gail-coin``           5      GAIL on the hidden-coin demonstrations, from the same coin BC
                                start as dc-coin: chapter 02's coin-flip experiment as cells,
                                with the seeds of the rest of the table
@@ -59,6 +62,7 @@ from dc_lesson import algorithms as _algorithms
 from dc_lesson import evaluation as _evaluation
 from dc_lesson.algorithms import bc as _bc
 from dc_lesson.data import store as _store
+from dc_lesson.evaluation import stats as _stats
 from dc_lesson.experiments import cells
 from dc_lesson.experiments.studies import _common, _imitation as _im
 
@@ -74,6 +78,7 @@ class Row:
     overrides: tuple = ()        # (field, value) pairs of the learner's config
     demos: str = ""              # "" (realizable experts) or "coin"
     mixture: bool = False        # the mixture policy (BC's, or DC from BC's)
+    mixture_seeds: bool = False  # a control of the mixture rows: runs on their seeds only
 
     @property
     def evaluates_start(self) -> bool:
@@ -106,6 +111,7 @@ ROWS = {r.name: r for r in (
     Row("dc", "coin", 4, demos="coin"),
     Row("bc", "mix-coin", 4, demos="coin", mixture=True),
     Row("dc", "mix-coin", 4, demos="coin", mixture=True),
+    Row("bc", "full-coin", 4, demos="coin", mixture_seeds=True),
     Row("gail", "coin", 5, demos="coin"),
 )}
 
@@ -155,7 +161,8 @@ def seeds(row: Row, task: str, b) -> tuple[int, ...]:
     """The row's seeds on ``task``: the budget's, or its first ``table1_mixture_seeds`` for
     the mixture rows (``budget.Budget.table1_mixture_seeds`` says why)."""
     all_seeds = b.seeds_for(task)
-    return all_seeds[:b.table1_mixture_seeds] if row.mixture else all_seeds
+    return (all_seeds[:b.table1_mixture_seeds] if row.mixture or row.mixture_seeds
+            else all_seeds)
 
 
 def cells_at(b) -> list[cells.Cell]:
@@ -281,7 +288,11 @@ PAIRS = (("dc", "bc"), ("dc", "gail"), ("dc", "bc-all"), ("dc", "bc-full"), ("ga
          ("dc", "dril"), ("dc", "pwil"), ("dc", "ndi"), ("dc", "gpril"),
          ("bc-mix", "bc-full"), ("dc-mix", "dc"), ("dc-coin", "bc-coin"),
          ("bc-mix-coin", "bc-coin"), ("dc-mix-coin", "dc-coin"), ("gail-coin", "bc-coin"),
-         ("dc-coin", "gail-coin"))
+         ("dc-coin", "gail-coin"),
+         # the mixture's matched controls: same training, Gaussian against mixture; and each
+         # mixture DC against its own start
+         ("bc-mix-coin", "bc-full-coin"), ("bc-full-coin", "bc-coin"),
+         ("dc-mix", "bc-mixstart"), ("dc-mix-coin", "bc-mixstart-coin"))
 
 
 def aggregate(records, b) -> dict:
@@ -291,12 +302,20 @@ def aggregate(records, b) -> dict:
                                                         for k, v in ROWS.items()}}
     eval_episodes = records[0]["config"].get("eval_episodes", b.il_eval_episodes)
     shares = _im.reference_shares(records)
+    # paired: the aggregate's measures and the TV of a seed's mode shares from the
+    # reference's (the mode question's own measure; the mixture rows are about it)
+    paired_measures = (*_agg.MEASURES, "mode_tv")
     for actions in ACTIONS:
         obs = observations(records, actions)   # the expert row: its one evaluation in both
+        for o in obs:   # the mode TV as a per-seed measure, so that it can be paired too
+            ref = shares.get(o["task"])
+            o["mode_tv"] = _stats.tv(ref, o["mode_shares"]) if ref and o.get(
+                "mode_shares") else None
         out[actions] = {
             "table": _agg.table([o for o in obs if o["row"] != "expert"]),
             "expert": _agg.table([o for o in obs if o["row"] == "expert"]),
-            "paired": [p for a, bb in PAIRS for p in _agg.paired(obs, a, bb)],
+            "paired": [p for a, bb in PAIRS
+                       for p in _agg.paired(obs, a, bb, measures=paired_measures)],
             "modes": _im.mode_summary(obs, shares, eval_episodes),
             "observations": obs}
     return out

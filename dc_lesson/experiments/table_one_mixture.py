@@ -1,0 +1,118 @@
+"""Chapter 04's mixture-policy section, read from the ``table1`` aggregate: what a policy that
+can hold several modes (:class:`~dc_lesson.nn.mixture.MixturePolicy`, 4 components) changes
+against the Gaussian policy trained the same way, on the realizable and the hidden-coin
+demonstrations.
+
+The comparisons (:data:`COMPARISONS`), each paired by seed over the mixture rows' seeds:
+
+* ``bc-mix - bc-full`` and ``bc-mix-coin - bc-full-coin``: BC on all 18 demonstrations to the
+  same fixed budget, mixture against Gaussian: the mixture's own effect, nothing else differs;
+* ``dc-mix - bc-mixstart`` (and its coin twin): what the mixture DC's RL loop does to its own
+  start (the mixture BC with its spreads reset for exploration);
+* ``dc-mix - dc`` (and its coin twin): the mixture DC against the Gaussian DC.  Their starts
+  differ in more than the policy class (the Gaussian DC starts from the paper's 70/30 BC, the
+  mixture DC from the mixture BC on all 18), so a difference here is the whole recipe's.
+
+Each is judged on three measures, each by the control rule of :mod:`table_one` (*higher*,
+*lower*, *no difference detected*, *too few seeds*): the TV distance of the seed's mode shares
+from the expert's (``mode_tv``; lower is better), the scaled return (higher is better) and the
+EMD of the mode features (lower is better).  :func:`tally` turns the words into *better* and
+*worse* by each measure's direction; :func:`lines` renders them.
+"""
+
+from __future__ import annotations
+
+from dc_lesson.experiments.report import fmt_entry
+from dc_lesson.experiments.table_one import TASKS, paired, word
+
+# (mixture row, Gaussian row, the learner, the demonstrations, what the difference isolates)
+COMPARISONS = (
+    ("bc-mix", "bc-full", "BC", "realizable", "the policy class alone"),
+    ("bc-mix-coin", "bc-full-coin", "BC", "hidden coin", "the policy class alone"),
+    ("dc-mix", "bc-mixstart", "DC", "realizable", "the mixture DC's loop against its start"),
+    ("dc-mix-coin", "bc-mixstart-coin", "DC", "hidden coin",
+     "the mixture DC's loop against its start"),
+    ("dc-mix", "dc", "DC", "realizable", "the whole mixture recipe (starts differ too)"),
+    ("dc-mix-coin", "dc-coin", "DC", "hidden coin",
+     "the whole mixture recipe (starts differ too)"),
+)
+
+# measure, label, +1 when higher is better, -1 when lower is
+MEASURES = (("mode_tv", "mode TV", -1), ("scaled_return", "scaled return", +1),
+            ("emd", "EMD", -1))
+
+
+def table(rec: dict, actions: str = "mean", digits: int = 3) -> list[dict]:
+    """One dict per (comparison, task): the rows, paired seeds, and per measure ``a - b`` as
+    ``mean [lo, hi]`` with its word."""
+    out = []
+    for a, b, learner, demos, what in COMPARISONS:
+        for task in TASKS:
+            e = paired(rec, a, b, task, actions)
+            row = {"demonstrations": demos, "a - b": f"{a} - {b}", "task": task,
+                   "isolates": what, "seeds": e["n_seeds"] if e else 0}
+            for m, label, _ in MEASURES:
+                row[label] = fmt_entry(e, m, digits) if e and m in e else ""
+                row[f"{label}: word"] = word(e, m)
+            out.append(row)
+    return out
+
+
+def verdict(entry: dict | None, measure: str, direction: int) -> str:
+    """``better``, ``worse``, ``no difference detected`` or ``too few seeds`` (or ``not run
+    yet``) for the mixture row ``a`` of a paired entry, by the measure's direction."""
+    w = word(entry, measure)
+    if w in ("higher", "lower"):
+        return "better" if (w == "higher") == (direction > 0) else "worse"
+    return w
+
+
+def tally(rec: dict, actions: str = "mean") -> dict:
+    """``{(a, b): {measure: {verdict: [tasks]}}}`` over :data:`TASKS`."""
+    out: dict = {}
+    for a, b, *_ in COMPARISONS:
+        per = out.setdefault((a, b), {})
+        for m, _, direction in MEASURES:
+            for task in TASKS:
+                v = verdict(paired(rec, a, b, task, actions), m, direction)
+                per.setdefault(m, {}).setdefault(v, []).append(task)
+    return out
+
+
+def _count(by_verdict: dict) -> str:
+    order = ("better", "worse", "no difference detected", "too few seeds", "not run yet")
+    parts = [f"{v} on {len(by_verdict[v])} ({', '.join(by_verdict[v])})"
+             for v in order if by_verdict.get(v)]
+    return "; ".join(parts)
+
+
+def lines(rec: dict, actions: str = "mean") -> list[str]:
+    """One rendered Markdown line per comparison: per measure, on how many tasks the mixture
+    row came out better, worse or indistinguishable (its paired 95% interval over at least
+    ``claims.MIN_SEEDS`` seeds), naming the tasks."""
+    t = tally(rec, actions)
+    out = []
+    for a, b, learner, demos, what in COMPARISONS:
+        per = t[(a, b)]
+        bits = [f"{label}: {_count(per[m])}" for m, label, _ in MEASURES]
+        out.append(f"* **`{a}` against `{b}`** ({demos} demonstrations; {what}): "
+                   + " · ".join(bits) + ".")
+    return out
+
+
+def shares(rec: dict, task: str, row: str, actions: str = "mean") -> dict:
+    """``row``'s mode shares on ``task`` under ``actions``, the mean over its seeds, in the
+    expert's mode order with ``none`` last (``row="expert"``: the expert scored like a
+    learner; its one evaluation is its mean action); ``{}`` when the row has not run."""
+    part = rec[actions]
+    found = [r for r in part["expert" if row == "expert" else "table"]
+             if r["task"] == task and r["row"] == row]
+    order = [k for r in part["expert"] if r["task"] == task
+             for k in r.get("mode_shares_mean", {}) if k != "none"]
+    if not found or not found[0].get("mode_shares_mean"):
+        return {}
+    got = found[0]["mode_shares_mean"]
+    return {k: got.get(k, 0.0) for k in [*order, "none"]}
+
+
+__all__ = ["COMPARISONS", "MEASURES", "lines", "shares", "table", "tally", "verdict"]
