@@ -81,6 +81,8 @@ def tally(rec: dict, actions: str = "mean") -> dict:
 
 def _count(by_verdict: dict) -> str:
     order = ("better", "worse", "no difference detected", "too few seeds", "not run yet")
+    if len(by_verdict) == 1:
+        return f"{next(iter(by_verdict))} on every task"
     parts = [f"{v} on {len(by_verdict[v])} ({', '.join(by_verdict[v])})"
              for v in order if by_verdict.get(v)]
     return "; ".join(parts)
@@ -94,7 +96,9 @@ def lines(rec: dict, actions: str = "mean") -> list[str]:
     out = []
     for a, b, learner, demos, what in COMPARISONS:
         per = t[(a, b)]
-        bits = [f"{label}: {_count(per[m])}" for m, label, _ in MEASURES]
+        said = {m: _count(per[m]) for m, _, _ in MEASURES}
+        bits = ([f"every measure: {said[MEASURES[0][0]]}"] if len(set(said.values())) == 1
+                else [f"{label}: {said[m]}" for m, label, _ in MEASURES])
         out.append(f"* **`{a}` against `{b}`** ({demos} demonstrations; {what}): "
                    + " · ".join(bits) + ".")
     return out
