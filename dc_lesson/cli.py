@@ -358,7 +358,7 @@ def cmd_sweep(args) -> int:
                                     workers))
             return 0
         report = sweep.run(args.study, b, only=args.only, address=args.address, cpus=args.cpus,
-                           command=_command_line())
+                           command=_command_line(), hours=args.hours)
     except (studies.UnknownStudyError, sweep.SweepError, cells.CellError,
             aggregate.AggregateError) as e:
         print(f"dc-lesson: {e}", file=sys.stderr)
@@ -366,7 +366,8 @@ def cmd_sweep(args) -> int:
     print(f"sweep {report.study} ({report.budget}): {report.cells} cells, {report.skipped} "
           f"already done, {report.ran} run, {len(report.failed)} failed, "
           f"{report.wall_seconds:.0f} s" + (f"; wrote {report.aggregate}" if report.aggregate
-                                             else ""))
+                                             else "")
+          + (f"; {report.deferred} left at the deadline (--hours)" if report.deferred else ""))
     return 1 if report.failed else 0
 
 
@@ -383,10 +384,16 @@ def _sweep_all(args, b) -> int:
         print(sweep.format_ledger(sweep.ledger(b, workers=workers), b, workers))
         return 0
     failed = 0
+    deadline = None if args.hours is None else time.time() + 3600.0 * args.hours
     for name in studies.BOOK:
+        hours = None if deadline is None else (deadline - time.time()) / 3600.0
+        if hours is not None and hours <= 0:
+            print(f"dc-lesson: the deadline (--hours) has passed; {name} and the studies after "
+                  "it are left for the next run")
+            break
         try:
             report = sweep.run(name, b, address=args.address, cpus=args.cpus,
-                               command=_command_line())
+                               command=_command_line(), hours=hours)
         except (sweep.SweepError, cells.CellError, aggregate.AggregateError) as e:
             print(f"dc-lesson: {name}: {e}", file=sys.stderr)
             return 2
@@ -516,6 +523,9 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--address", default=None, help="join this Ray cluster (e.g. auto)")
     s.add_argument("--cpus", type=int, default=None, help="local Ray workers (default: all "
                    "cores)")
+    s.add_argument("--hours", type=positive_float, default=None,
+                   help="start only the cells whose estimated cost ends within this many "
+                        "hours; running cells finish (a session's length)")
     s.set_defaults(func=cmd_sweep)
     s = sub.add_parser("aggregate", help="a finished study's cells -> data/results/STUDY.json")
     s.add_argument("study")

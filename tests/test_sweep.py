@@ -175,3 +175,33 @@ def test_the_ledger_counts_each_cell_once_and_sums_the_done_cells_wall_time(unin
     assert all(r["left"] == r["cells"] - r["done"] for r in rows.values())
     text = sweep.format_ledger(list(rows.values()), TINY, 2)
     assert "on 2 worker(s)" in text and text.count("\n") == len(rows) + 3
+
+
+def test_with_a_deadline_only_the_cells_that_fit_start_in_order_and_the_rest_wait():
+    est = {"a": 50.0, "b": 500.0, "c": 20.0, "d": None}
+    # no deadline: the first free-many, in order
+    assert sweep.startable(list(est), est, 2, 0.0, None) == ["a", "b"]
+    # 100 s left: b would end too late and is passed over; c, cheaper and later, fits
+    assert sweep.startable(list(est), est, 2, 0.0, 100.0) == ["a", "c"]
+    assert sweep.startable(list(est), est, 3, 0.0, 100.0) == ["a", "c", "d"]   # never measured
+    assert sweep.startable(list(est), est, 0, 0.0, None) == []                # no free worker
+    assert sweep.startable(list(est), est, 2, 90.0, 100.0) == ["d"]   # late: only the unknown
+
+
+def test_a_sweep_whose_deadline_has_passed_starts_nothing_and_resumes_later(uninterrupted,
+                                                                             tmp_path):
+    import shutil
+    root_a, _ = uninterrupted
+    root_b = tmp_path / "cells"
+    shutil.copytree(root_a, root_b)
+    gone = sorted(root_b.glob("bc_demos/reacher4/bc__*s1*.json"))
+    assert gone
+    for p in gone:   # one seed's BC cell(s) to run again; their row keeps a measured cost
+        p.unlink()
+        p.with_suffix(".npz").unlink(missing_ok=True)   # a cell without features has none
+    late = sweep.run("bc_demos", TINY, only=ONLY, root=root_b, progress=False, hours=1e-7)
+    assert (late.ran, late.deferred, late.failed) == (0, len(gone), [])
+    assert len(_results(root_b)) == 5 - len(gone)
+    rest = sweep.run("bc_demos", TINY, only=ONLY, root=root_b, progress=False, hours=1.0)
+    assert (rest.ran, rest.deferred) == (len(gone), 0)
+    assert _results(root_b) == _results(root_a)

@@ -1,5 +1,5 @@
 """The sweep engine: ``dc-lesson sweep STUDY [--budget B] [--only k=v ...] [--dry-run]
-[--address ADDR] [--cpus N]``.
+[--address ADDR] [--cpus N] [--hours H]``.
 
 1. The study is expanded into its cells at the budget (:meth:`cells.Study.grid`: the cells a
    cell reads, such as the fresh expert reference, come with it); ``--only`` keeps the cells
@@ -13,6 +13,9 @@
 4. The rest run as Ray tasks, stage by stage (references first): a local Ray instance
    (``ray.init(num_cpus=N, include_dashboard=False)``, N = the machine's cores by default),
    one CPU and one torch thread per task; ``--address`` joins an existing Ray cluster instead.
+   Cells start one per free worker, in the grid's order; with ``--hours H`` only those whose
+   estimated cost (step 3) ends within H hours of the start (:func:`startable`), so a sweep
+   given a session's length stops with every started cell written, never killed part way.
    Workers only compute; the driver writes each record atomically the moment its task ends, so
    a sweep killed at any moment keeps every finished cell, and a rerun computes exactly the
    missing ones.  A cell's numbers depend on nothing but the cell (its config and seed), so a
@@ -278,13 +281,35 @@ class SweepReport:
     failed: list
     wall_seconds: float
     aggregate: pathlib.Path | None = None
+    deferred: int = 0     # cells not started because they would have ended after the deadline
+
+
+def startable(queue: list, estimates: dict, free: int, now: float,
+              deadline: float | None) -> list:
+    """Which queued cells to start now, in queue order: at most ``free`` of them, and with a
+    ``deadline`` (a ``time.time()``) only those whose estimated cost (``estimates[cell]``,
+    seconds; a cell never measured counts as free) would end before it.  A cell that would
+    not fit is passed over, so a cheaper one later in the queue can still use the time."""
+    out = []
+    for c in queue:
+        if len(out) >= free:
+            break
+        if deadline is None or now + (estimates.get(c) or 0.0) <= deadline:
+            out.append(c)
+    return out
 
 
 def run(study_name: str, b: _budget.Budget | None = None, *, only=(), address=None, cpus=None,
         root=None, results=None, command: str = "", progress: bool = True,
-        aggregate: bool = True) -> SweepReport:
+        aggregate: bool = True, hours: float | None = None) -> SweepReport:
     """The sweep (module docstring).  ``root`` is the cells folder (default
-    ``DATA/results/cells``), ``results`` where the aggregate goes (default ``DATA/results``)."""
+    ``DATA/results/cells``), ``results`` where the aggregate goes (default ``DATA/results``).
+
+    ``hours``: a deadline that many hours from now.  Cells are started one per free worker
+    (:func:`startable`), only those whose estimated cost ends before the deadline; cells
+    running at the deadline finish, so a session of fixed length stops with every started
+    cell written instead of killing cells part way (``SweepReport.deferred`` counts the rest,
+    which the next run picks up)."""
     import ray
 
     from dc_lesson import progress as _progress
@@ -296,8 +321,10 @@ def run(study_name: str, b: _budget.Budget | None = None, *, only=(), address=No
     p = plan(study, b, only, root)
     grid, todo = p["grid"], p["todo"]
     costs = measured_costs(root)
+    estimates = dict(zip(map(id, todo), p["estimates"]))
+    deadline = None if hours is None else time.time() + 3600.0 * hours
     t0 = time.perf_counter()
-    failed, ran = [], 0
+    failed, ran, deferred = [], 0, 0
     if todo:
         started = start_ray(b, address=address, cpus=cpus)
         workers = int(ray.cluster_resources().get("CPU", 1))
@@ -308,11 +335,18 @@ def run(study_name: str, b: _budget.Budget | None = None, *, only=(), address=No
                             enabled=progress)
         try:
             for stage in sorted({c.stage for c in todo}):
-                wave = [c for c in todo if c.stage == stage]
+                queue = [c for c in todo if c.stage == stage]
                 pending = {}
-                for c in wave:
-                    needs = [_cells.load(n, root) for n in c.needs]
-                    pending[remote.remote(c, needs)] = c
+
+                def submit():   # fill the free workers with the cells that fit
+                    go = startable([id(c) for c in queue], estimates,
+                                   workers - len(pending), time.time(), deadline)
+                    for c in [c for c in queue if id(c) in set(go)]:
+                        queue.remove(c)
+                        needs = [_cells.load(n, root) for n in c.needs]
+                        pending[remote.remote(c, needs)] = c
+
+                submit()
                 while pending:
                     running = min(len(pending), workers)
                     bar.set_postfix_str(f"running {running}, left {len(remaining) - running}, "
@@ -326,6 +360,7 @@ def run(study_name: str, b: _budget.Budget | None = None, *, only=(), address=No
                         failed.append((cell.name, str(e).splitlines()[-1][:300]))
                         bar.write(f"FAILED {cell.study}/{cell.task}/{cell.name}: {failed[-1][1]}")
                         bar.update(1)
+                        submit()
                         continue
                     prov = _cells.provenance(command=command, budget=b.name,
                                              threads=out["threads"],
@@ -334,12 +369,18 @@ def run(study_name: str, b: _budget.Budget | None = None, *, only=(), address=No
                     walls.setdefault((cell.row, cell.task), []).append(out["wall_seconds"])
                     ran += 1
                     bar.update(1)
+                    submit()
+                deferred += len(queue)
+                if queue:   # past the deadline: later stages would not fit either
+                    deferred += sum(c.stage > stage for c in todo)
+                    bar.write(f"deadline: {deferred} cells left for the next run")
+                    break
         finally:
             bar.close()
             if started:
                 ray.shutdown()
     report = SweepReport(study.name, b.name, len(grid), len(grid) - len(todo), ran, failed,
-                         time.perf_counter() - t0)
+                         time.perf_counter() - t0, deferred=deferred)
     complete = all(_cells.is_done(c, root) for c in study.grid(b))
     if aggregate and complete and study.aggregate is not None:
         from dc_lesson.experiments import aggregate as _aggregate
@@ -365,4 +406,4 @@ def _eta(left, walls, costs, b, workers) -> float | None:
 __all__ = ["ONLY_KEYS", "SweepError", "SweepReport", "check_writable", "estimate", "execute",
            "format_plan", "interactions", "ledger", "format_ledger", "measured_costs",
            "measured_rates",
-           "plan", "run", "select", "start_ray"]
+           "plan", "run", "select", "start_ray", "startable"]
