@@ -12,11 +12,12 @@ import time
 
 import pytest
 
+import dc_lesson
 from dc_lesson import cli
 from dc_lesson.data import store
 from dc_lesson.experts import trained
 
-ROOT = pathlib.Path(cli.__file__).resolve().parent.parent
+ROOT = pathlib.Path(dc_lesson.__file__).resolve().parent.parent   # the checkout
 
 
 def _corrupt_copy(src_dir: pathlib.Path, dst_dir: pathlib.Path, name: str) -> None:

@@ -1,0 +1,183 @@
+"""The commands that run one thing: ``tasks``, ``tour``, ``demos``, ``expert``, ``train`` and
+``perf`` (each a thin shell over the library; the library checks, the command explains)."""
+
+from __future__ import annotations
+
+import pathlib
+import sys
+import time
+
+from dc_lesson.cli._args import UsageError, check_output, command_line, refuse_unused
+
+PERFS = {
+    "rollout": ("control steps per second of the batched task engine against raw MuJoCo",
+                {"tasks", "steps"}),
+    "softflow": ("SoftFlow's log-density and training speed against a naive CNF", set()),
+    "learners": ("BC, PPO, GAIL and DC per phase, on the path before issue 14 and today's",
+                 {"tasks"}),
+}
+
+
+def cmd_tasks(args) -> int:
+    from dc_lesson import tasks
+    for row in tasks.spec_table():
+        print(f"{row['task']:<13} obs {row['obs']:>3}  act {row['act']:>2}  horizon "
+              f"{row['horizon']}  dt {row['control dt (s)']:.3f}s  mode: {row['mode feature']}"
+              f"  [{row['dm_control base']}]")
+    return 0
+
+
+def cmd_tour(args) -> int:
+    from dc_lesson import budget, tasks
+    from dc_lesson.viz import plots
+    from dc_lesson.experiments import tour
+    check_output(args.out, folder=True)
+    check_output(args.save)
+    b = budget.current()
+    if not args.no_headline:
+        from dc_lesson import data
+        data.load_demos("reacher4")   # a damaged demonstration file stops the tour now
+    out = pathlib.Path(args.out)
+    t0 = time.time()
+    names = list(tasks.NAMES)
+    print(f"budget: {b.name} ({b.tour_episodes} random episodes per task)")
+    fig = plots.gallery(tour.frames(names), names, path=out / "tour_tasks.png")
+    stats = tour.random_returns(names, b.tour_episodes, seed=args.seed)
+    plots.return_bars(names, [stats[n]["mean"] for n in names], [stats[n]["std"] for n in names],
+                      title="random policy", path=out / "tour_random_returns.png")
+    del fig
+    print(f"\n{'task':<13}{'paper task':<40}{'obs':>4}{'act':>4}{'random return':>18}")
+    for n in names:
+        s = tasks.SPECS[n]
+        print(f"{n:<13}{s.paper_task:<40}{s.obs_dim:>4}{s.act_dim:>4}"
+              f"{stats[n]['mean']:>11.1f} ± {stats[n]['std']:<5.1f}")
+    print(f"\nsaved {out / 'tour_tasks.png'} and {out / 'tour_random_returns.png'} "
+          f"in {time.time() - t0:.0f} s")
+    if not args.no_headline:
+        from dc_lesson.experiments import headline
+        print(f"\nThe book's headline: BC, GAIL and DC on reacher4 (budget {b.name}, seed "
+              f"{args.seed}; --no-headline skips it)")
+        headline.run("reacher4", seed=args.seed, budget=b, out=out)
+    if args.save:
+        from dc_lesson.storage import write_result
+        path = write_result(args.save, {"random_returns": stats}, command=command_line(),
+                            seeds=[args.seed])
+        print(f"wrote {path}")
+    return 0
+
+
+def cmd_demos(args) -> int:
+    from dc_lesson.experts import demos
+    if args.first is not None and args.stage != "eval":
+        raise UsageError("--first applies to --stage eval only")
+    for name in args.task:
+        entry = demos.make_demos(name, command=command_line(), stage=args.stage,
+                                 threads=args.threads, first=args.first,
+                                 variant=args.variant)
+        if entry is None:
+            print(f"{name}: stage {args.stage!r} complete in data/demos/partial/; finish with: "
+                  f"dc-lesson demos --task {name}")
+            continue
+        e, r = entry["expert_return"], entry["random_return"]
+        shares = ", ".join(f"{k} {v:.2f}" for k, v in entry["demo_mode_shares"].items())
+        print(f"{name}: {entry['n_trajectories']} demonstrations; expert {e['mean']:.1f} ± "
+              f"{e['std']:.1f}, random {r['mean']:.1f} ± {r['std']:.1f} over "
+              f"{e['n_episodes']} episodes; modes: {shares}; {entry['wall_seconds']:.0f} s")
+    return 0
+
+
+def cmd_expert(args) -> int:
+    from dc_lesson.data import rollout
+    from dc_lesson.experts import load_expert, planner, trained
+    if args.what == "eval" and (args.steps is not None or args.restart):
+        raise UsageError("--steps and --restart apply to expert train, not expert eval")
+    for name in args.task:
+        if args.what == "train":
+            if name in planner.PLANNERS:
+                planner.write_settings(name, command=command_line())
+                print(f"{name}: the expert is a planner, nothing to train; its settings are in "
+                      f"{planner.settings_path(name)}; evaluating it costs minutes per episode: "
+                      f"dc-lesson expert eval --task {name} --episodes N")
+                continue
+            elif name in trained.EXPERT_UNITS:
+                for unit in trained.EXPERT_UNITS[name]:
+                    meta = trained.train_unit(unit, total_steps=args.steps,
+                                              command=command_line(), restart=args.restart)
+                    if meta.get("restarted"):
+                        print(f"{unit}: --restart discarded the checkpoint "
+                              f"{trained.unit_paths(unit)['checkpoint']} and trained from the "
+                              f"first update")
+                    print(f"{unit}: {meta['steps']} steps, {meta['training_seconds']:.0f} s of "
+                          f"training; saved {trained.unit_paths(unit)['policy']}")
+            else:
+                print(f"dc-lesson: {name} has a scripted expert; nothing to train",
+                      file=sys.stderr)
+                continue
+        expert, info = load_expert(name)
+        r = rollout.returns(rollout.collect(name, expert, args.episodes, seed=1))
+        print(f"{name}: expert ({info['name']}) return {r.mean():.1f} ± {r.std():.1f} over "
+              f"{len(r)} episodes")
+    return 0
+
+
+def cmd_perf(args) -> int:
+    from dc_lesson import budget
+    refuse_unused(args.what, PERFS, args, "perf")
+    check_output(args.out)
+    if args.what == "learners":
+        from dc_lesson.perf import learners as perf_learners
+        perf_learners.main(args.tasks or None, args.learners or None, repeats=args.repeats,
+                           out=args.out, command=command_line())
+        return 0
+    if args.what == "softflow":
+        from dc_lesson.perf import softflow as perf_softflow
+        return perf_softflow.main(["--save", args.out] if args.out else [])
+    from dc_lesson.perf import rollout as perf_rollout
+    steps = budget.current().bench_steps if args.steps is None else args.steps
+    perf_rollout.main(args.tasks, n_steps=steps, out=args.out, command=command_line())
+    return 0
+
+
+def cmd_train(args) -> int:
+    import torch
+
+    from dc_lesson import algorithms, budget, data, evaluation
+    from dc_lesson.nn import policies
+    algo = algorithms.get(args.learner)
+    if args.demos is not None and not algo.uses_demos:
+        raise UsageError(f"{algo.name} learns from the task's reward, not from "
+                         f"demonstrations: leave out --demos")
+    if args.save:
+        for task in args.task:
+            try:
+                path = args.save.format(task=task, learner=algo.name)
+            except (KeyError, IndexError, ValueError):
+                raise UsageError(f"--save {args.save!r}: only {{task}} and {{learner}} can be "
+                                 f"filled in") from None
+            check_output(path)
+    b = budget.current()
+    torch.set_num_threads(1)
+    demos_of = {}
+    for task in args.task:   # every task's demonstrations are checked before any training
+        if algo.uses_demos:
+            demos_of[task] = data.load_demos(task, n_trajectories=(
+                b.il_demos if args.demos is None else args.demos))
+    for task in args.task:
+        demos = demos_of.get(task)
+        start = None
+        if args.learner in ("gail", "dc"):   # the paper's protocol: from BC's warm start
+            start = algorithms.bc.warm_start_policy(demos, args.seed,
+                                                    max_epochs=b.bc_max_epochs)
+        t0 = time.time()
+        result = algo.train(task, demos, algo.preset(b, args.seed), policy=start,
+                            progress=True)
+        ev = evaluation.evaluate_policy(task, result.policy, n_episodes=b.il_eval_episodes)
+        print(f"{task}: {algo.name} (budget {b.name}, seed {args.seed}) trained in "
+              f"{time.time() - t0:.0f} s; scaled return {ev['scaled_return']:.3f}, "
+              f"return {ev['return']:.1f} over {b.il_eval_episodes} episodes")
+        if args.save:
+            path = pathlib.Path(args.save.format(task=task, learner=algo.name))
+            policies.save_policy(result.policy, path, meta={"task": task, "algorithm": algo.name,
+                                                            "seed": args.seed, "budget": b.name})
+            print(f"saved {path}")
+    return 0

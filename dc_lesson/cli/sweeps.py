@@ -1,0 +1,82 @@
+"""``dc-lesson sweep`` and ``dc-lesson aggregate``: a study's cells on Ray, and their aggregate
+(:mod:`dc_lesson.experiments.sweep` says everything a sweep does)."""
+
+from __future__ import annotations
+
+import os
+import sys
+import time
+
+from dc_lesson.cli._args import command_line
+
+def cmd_sweep(args) -> int:
+    """``dc-lesson sweep``: dc_lesson.experiments.sweep (its docstring says everything)."""
+    from dc_lesson import budget
+    from dc_lesson.experiments import aggregate, cells, studies, sweep
+    b = budget.get(args.budget) if args.budget else budget.current()
+    if args.study == "all":
+        return _sweep_all(args, b)
+    try:
+        study = studies.get(args.study)
+        if args.dry_run:
+            workers = args.cpus or os.cpu_count() or 1
+            print(sweep.format_plan(study, b, sweep.plan(study, b, args.only, workers=workers),
+                                    workers))
+            return 0
+        report = sweep.run(args.study, b, only=args.only, address=args.address, cpus=args.cpus,
+                           command=command_line(), hours=args.hours)
+    except (studies.UnknownStudyError, sweep.SweepError, cells.CellError,
+            aggregate.AggregateError) as e:
+        print(f"dc-lesson: {e}", file=sys.stderr)
+        return 2
+    print(f"sweep {report.study} ({report.budget}): {report.cells} cells, {report.skipped} "
+          f"already done, {report.ran} run, {len(report.failed)} failed, "
+          f"{report.wall_seconds:.0f} s" + (f"; wrote {report.aggregate}" if report.aggregate
+                                             else "")
+          + (f"; {report.deferred} left at the deadline (--hours)" if report.deferred else ""))
+    return 1 if report.failed else 0
+
+
+def _sweep_all(args, b) -> int:
+    """``dc-lesson sweep all``: every study in turn (``--dry-run``: the ledger of the whole
+    grid, done and left, with its CPU time)."""
+    from dc_lesson.experiments import aggregate, cells, studies, sweep
+    workers = args.cpus or os.cpu_count() or 1
+    if args.only:
+        print("dc-lesson: --only selects cells of one study; name the study instead of 'all'",
+              file=sys.stderr)
+        return 2
+    if args.dry_run:
+        print(sweep.format_ledger(sweep.ledger(b, workers=workers), b, workers))
+        return 0
+    failed = 0
+    deadline = None if args.hours is None else time.time() + 3600.0 * args.hours
+    for name in studies.BOOK:
+        hours = None if deadline is None else (deadline - time.time()) / 3600.0
+        if hours is not None and hours <= 0:
+            print(f"dc-lesson: the deadline (--hours) has passed; {name} and the studies after "
+                  "it are left for the next run")
+            break
+        try:
+            report = sweep.run(name, b, address=args.address, cpus=args.cpus,
+                               command=command_line(), hours=hours)
+        except (sweep.SweepError, cells.CellError, aggregate.AggregateError) as e:
+            print(f"dc-lesson: {name}: {e}", file=sys.stderr)
+            return 2
+        failed += len(report.failed)
+        print(f"sweep {name} ({report.budget}): {report.ran} run, {report.skipped} already "
+              f"done, {len(report.failed)} failed")
+    return 1 if failed else 0
+
+
+def cmd_aggregate(args) -> int:
+    from dc_lesson import budget
+    from dc_lesson.experiments import aggregate, cells, studies
+    b = budget.get(args.budget) if args.budget else budget.current()
+    try:
+        path = aggregate.write(args.study, b, command=command_line(), partial=args.partial)
+    except (studies.UnknownStudyError, cells.CellError, aggregate.AggregateError) as e:
+        print(f"dc-lesson: {e}", file=sys.stderr)
+        return 2
+    print(f"wrote {path}")
+    return 0
