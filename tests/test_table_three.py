@@ -149,6 +149,11 @@ def test_comparability_is_non_inferiority_with_a_declared_margin():
         {"inconclusive (all 2 tasks)"}
     assert _verdict(t3.verdicts(_single(0.0, 0.01, 0.2, n_seeds=4)), t3.COMPARABLE) == \
         {"inconclusive (all 2 tasks)"}
+    # one seed has no interval: the evidence says so, never "[nan, nan]"
+    one = [v for v in t3.verdicts(_single(0.0, 0.01, 0.2, n_seeds=1)) if v["claim"] ==
+           t3.COMPARABLE]
+    assert one and all("(no interval)" in v["evidence"] and "nan" not in v["evidence"]
+                       and "fewer than" in v["evidence"] for v in one)
 
 
 def test_bc_growth_compares_the_fewest_with_the_most_demonstrations_and_curves_are_judged():

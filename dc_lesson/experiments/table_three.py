@@ -230,8 +230,11 @@ def _non_inferior(obs, n) -> dict:
         else:
             word = "inconclusive"
         per_task.append((task, word))
-        parts.append(f"{task}: dc - gail = {ci.mean:+.3f} [{ci.lo:+.3f}, {ci.hi:+.3f}] over "
-                     f"{len(seeds)} seeds -> {word}")
+        band = (f"[{ci.lo:+.3f}, {ci.hi:+.3f}]" if np.isfinite(ci.lo) and np.isfinite(ci.hi)
+                else "(no interval)")
+        few = f" (fewer than {_claims.MIN_SEEDS} seeds)" if len(seeds) < _claims.MIN_SEEDS else ""
+        parts.append(f"{task}: dc - gail = {ci.mean:+.3f} {band} over {len(seeds)} seeds -> "
+                     f"{word}{few}")
     return {"claim": COMPARABLE, "n_demos": n, "verdict": _claims.count(per_task),
             "evidence": "; ".join(parts) or "no paired results", "rule": COMPARABLE_RULE}
 
