@@ -714,6 +714,10 @@ print(f"this chapter ran in {time.perf_counter() - CHAPTER_START:.0f} s at budge
 #   mode mix; with experts that choose from the start state the question is fair, and the
 #   Table I section gives the answer our runs support, claim by claim and control by
 #   control, with its intervals (and how many of the grid's cells it rests on).
+# * A unimodal policy class, not BC's objective, is what loses a mode at a state. A mixture
+#   policy can hold several; whether it lowers the mode TV, for BC and for DC, and at what
+#   cost in return, is judged by the mixture section's paired comparisons (under sampled
+#   actions for the hidden coin: the mean action of any policy is one mode per state).
 #
 # ## Exercises
 #
