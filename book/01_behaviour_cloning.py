@@ -46,7 +46,7 @@ import torch
 from IPython.display import Markdown, display
 
 from dc_lesson.algorithms import bc
-from dc_lesson.experiments import bc as bench_bc
+from dc_lesson.experiments import bc as bc_runs
 from dc_lesson import budget, data
 from dc_lesson.evaluation import metrics
 from dc_lesson.viz import plots
@@ -70,7 +70,7 @@ VARIANT = "coin" if LIVE_TASK in ("reacher2", "reacher4") else None
 ENTRY = data.manifest_entry(LIVE_TASK, variant=VARIANT)
 N_LIVE = max(BUDGET.bc_demo_counts)          # demonstrations for the live policy
 N_FEW = min(BUDGET.bc_demo_counts)           # and for the "few demonstrations" contrast
-EVAL_SEED = bench_bc.EVAL_SEED               # fresh episodes: the demonstrations used seed 0
+EVAL_SEED = bc_runs.EVAL_SEED               # fresh episodes: the demonstrations used seed 0
 print(f"live task: {LIVE_TASK}; {N_LIVE} demonstrations (and {N_FEW} for contrast); "
       f"at most {BUDGET.bc_max_epochs} epochs; {BUDGET.bc_eval_episodes} evaluation episodes")
 
@@ -345,7 +345,7 @@ display(Markdown("\n".join(lines)))
 # learner's observation is from the *nearest* state in the task's demonstrations
 # (`metrics.distance_to_expert`, each observation dimension in units of the expert's spread
 # along it). Fresh expert episodes, started from the same initial states, give the floor: how
-# far a perfect imitator would be. `bench_bc.drift` runs the expert, the live BC policy and a
+# far a perfect imitator would be. `bc_runs.drift` runs the expert, the live BC policy and a
 # BC policy trained on the fewest demonstrations from the same initial states; below, seed 0
 # live, on `reacher4` and `halfcheetah`; the stored cells below repeat it over 10 and 5
 # seeds.
@@ -355,7 +355,7 @@ DRIFT_TASKS = [t for t in ("reacher4", "halfcheetah") if t in HAVE] or [LIVE_TAS
 N_DRIFT = min(20, BUDGET.bc_eval_episodes)
 drift = {}
 for task in DRIFT_TASKS:
-    drift[task] = bench_bc.drift(task, sorted({N_FEW, N_LIVE}), seed=0, n_episodes=N_DRIFT,
+    drift[task] = bc_runs.drift(task, sorted({N_FEW, N_LIVE}), seed=0, n_episodes=N_DRIFT,
                                  max_epochs=BUDGET.bc_max_epochs,
                                  policies={N_LIVE: policy} if task == LIVE_TASK else None,
                                  variant=VARIANT if task == LIVE_TASK else None)
@@ -370,7 +370,7 @@ for task in DRIFT_TASKS:
     plt.show()
     print(f"{task}, median distance over the second half of the episodes: " + ", ".join(
         f"{name} {figures['late_median']:.3f}"
-        for name, figures in bench_bc.drift_summary(curves).items()))
+        for name, figures in bc_runs.drift_summary(curves).items()))
 
 # %% [markdown]
 # The stored drift study repeats this as cells (`dc-lesson sweep bc_drift`, aggregated to

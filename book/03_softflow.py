@@ -59,7 +59,7 @@ import pandas as pd
 import torch
 from IPython.display import Markdown, display
 
-from dc_lesson.experiments import softflow as bench_softflow
+from dc_lesson.experiments import softflow as fits
 from dc_lesson.experiments.studies import softflow_fit as softflow_fit_study
 from dc_lesson import notebook
 from dc_lesson.density import softflow
@@ -158,18 +158,18 @@ print(f"stored: {FIT['command']}\n  {FIT['cells']['n']} cells, budget {FIT['budg
 # The unit circle in $\mathbb R^2$ is the smallest manifold problem there is: one-dimensional
 # data in two dimensions. We train both flows on points exactly on the circle, with the same
 # network (concat-squash 32-32), solver (rk4 with 4 steps), exact trace, minibatches of 128
-# and iterations; `bench_softflow.toy_config` holds the settings. The learning rate is
+# and iterations; `fits.toy_config` holds the settings. The learning rate is
 # 3e-3, three times SoftFlow's reference, so that a few hundred steps get somewhere. We score
 # them on fresh points at three distances from the circle: exactly on it, and with Gaussian
 # noise of std 0.02 and 0.05 (the circle's radius is 1). The noisy points are the "almost
 # expert" states a learner visits; a reward should still like them.
 #
-# First live, at the current budget, for seed 0: `bench_softflow.toy_run` is the same function
+# First live, at the current budget, for seed 0: `fits.toy_run` is the same function
 # the stored benchmark runs, so at `lesson` on one thread it repeats the stored seed-0 row.
 
 # %%
 t0 = time.perf_counter()
-live = bench_softflow.toy_run(seed=0, sigma_maxes=(0.0, 0.1), points=BUDGET.softflow_toy_points,
+live = fits.toy_run(seed=0, sigma_maxes=(0.0, 0.1), points=BUDGET.softflow_toy_points,
                               iterations=BUDGET.softflow_toy_iters, grid=BUDGET.softflow_grid,
                               keep_flows=True)
 toy_flows = {"plain CNF": live[0]["flow"], "SoftFlow": live[1]["flow"]}
@@ -213,7 +213,7 @@ draw_densities([(r["model"], r["density"]) for r in live], live[0]["grid"],
 # %%
 toy = FIT["toy"]
 table = pd.DataFrame({
-    bench_softflow.model_name(float(s)): {f"noise {nz}": f"{v['mean']:.2f} ± {v['std']:.2f}"
+    fits.model_name(float(s)): {f"noise {nz}": f"{v['mean']:.2f} ± {v['std']:.2f}"
                                           for nz, v in row.items()}
     for s, row in toy["summary"].items() if float(s) in (0.0, 0.1)})
 print(f"held-out NLL over seeds {toy['seeds']}, {toy['config']['iterations']} steps, "
@@ -223,7 +223,7 @@ gap = pd.DataFrame({nz: v["per_seed"] for nz, v in toy["cnf_minus_softflow"].ite
                    index=[f"seed {s}" for s in toy["seeds"]]).round(2)
 print("CNF minus SoftFlow (positive: SoftFlow better), by seed:")
 display(gap)
-draw_densities([(bench_softflow.model_name(s), FIT_ARRAYS[f"toy_density_sigma_{s:g}"])
+draw_densities([(fits.model_name(s), FIT_ARRAYS[f"toy_density_sigma_{s:g}"])
                 for s in (0.0, 0.1)], FIT_ARRAYS["toy_grid"], "stored, seed 0")
 
 # %%
@@ -233,7 +233,7 @@ for ax, nz in zip(axes, ("0", "0.05")):
         runs = [r for r in toy["runs"] if r["sigma_max"] == s]
         curve = np.array([r["heldout_curve"][nz] for r in runs])
         it = runs[0]["heldout_curve"]["iteration"]
-        ax.plot(it, curve.mean(0), label=bench_softflow.model_name(s))
+        ax.plot(it, curve.mean(0), label=fits.model_name(s))
         ax.fill_between(it, curve.min(0), curve.max(0), alpha=0.2)
     ax.set_xlabel("gradient step")
     ax.set_ylabel("held-out NLL (nats)")
@@ -290,7 +290,7 @@ display(Markdown("\n".join(findings) + "\n\n" + (
 # of states *sampled* from the flow (by running its ODE backwards) against the data's.
 #
 # ```
-# judge(task)                                              # bench_softflow.task_data / task_run
+# judge(task)                                              # fits.task_data / task_run
 #   demos ← the task's 25 demonstrations; hold out the last one of each mode
 #   train ← 4000 random states of the others; fit SoftFlow (σ_max = 0.1) on the full states
 #   the fit:   held-out NLL of the held-out states, clean and + 0.05·std noise
@@ -304,8 +304,8 @@ display(Markdown("\n".join(findings) + "\n\n" + (
 # log-density and placed by its fingertip position.
 
 # %%
-d = bench_softflow.task_data("reacher4", BUDGET.softflow_states)
-cfg = bench_softflow.task_config(sigma_max=0.1, iterations=BUDGET.softflow_iters, seed=0)
+d = fits.task_data("reacher4", BUDGET.softflow_states)
+cfg = fits.task_config(sigma_max=0.1, iterations=BUDGET.softflow_iters, seed=0)
 t0 = time.perf_counter()
 flow, log = softflow.fit(d["train"], cfg, progress=False)
 print(f"SoftFlow on {len(d['train'])} reacher4 states ({d['train'].shape[1]}-D): {len(log)} "
@@ -501,21 +501,21 @@ display(Markdown("\n".join(lines)))
 # as before.
 
 # %%
-sweep_toy = pd.DataFrame({bench_softflow.model_name(float(s)): {
+sweep_toy = pd.DataFrame({fits.model_name(float(s)): {
     f"noise {nz}": f"{v['mean']:.2f} ± {v['std']:.2f}" for nz, v in row.items()}
     for s, row in FIT["toy"]["summary"].items()}).T
 print("toy: held-out NLL over seeds (stored)")
 display(sweep_toy)
-r4 = FIT["tasks"][bench_softflow.SWEEP_TASK]
+r4 = FIT["tasks"][fits.SWEEP_TASK]
 sweep_task = pd.DataFrame({r["model"]: {
     **{f"held-out NLL, {k}": v for k, v in r["heldout_nll"].items()},
     "lowest log P at a target": min(r["mode_logp"].values()),
     "log P in transit": r["transit_logp"],
     "samples at a target": sum(r["sample_at_mode_shares"])} for r in r4["runs"]}).T
-print(f"{bench_softflow.SWEEP_TASK}, seed 0 (stored); the data have "
+print(f"{fits.SWEEP_TASK}, seed 0 (stored); the data have "
       f"{sum(r4['data_at_mode_shares']):.2f} of their states at a target")
 display(sweep_task.round(2))
-draw_densities([(bench_softflow.model_name(s), FIT_ARRAYS[f"toy_density_sigma_{s:g}"])
+draw_densities([(fits.model_name(s), FIT_ARRAYS[f"toy_density_sigma_{s:g}"])
                 for s in FIT["toy"]["sigma_maxes"]], FIT_ARRAYS["toy_grid"],
                "stored toy densities, seed 0, by sigma_max")
 
@@ -645,7 +645,7 @@ display(Markdown(
 # 4. **What does $\sigma$ do at evaluation?** Evaluate the toy SoftFlow at $\sigma = 0$ and at
 #    $\sigma=\sigma_{\max}$ (`flow.log_prob(x, sigma=...)`; $\sigma$ in standardised units)
 #    on points 0.2 away from the circle. Which level gives them more density?
-# 5. **Both directions?** Fit SoftFlow to `halfcheetah2`'s states with `bench_softflow.task_run`
+# 5. **Both directions?** Fit SoftFlow to `halfcheetah2`'s states with `fits.task_run`
 #    at a different seed, and compare the share of backward-running samples with the data's.
 
 # %%
@@ -682,7 +682,7 @@ assert abs(mass - 1) < 0.02
 
 # %%
 # Exercise 4: the noise level's effect, 0.2 off the circle (outside it).
-off = bench_softflow.circle(500, seed=2) * 1.2
+off = fits.circle(500, seed=2) * 1.2
 lp0 = toy_flows["SoftFlow"].log_prob(off, sigma=0.0).mean().item()
 lpmax = toy_flows["SoftFlow"].log_prob(off, sigma=toy_flows["SoftFlow"].sigma_max).mean().item()
 print(f"mean log p 0.2 off the circle: sigma = 0 {lp0:.3f}, sigma = sigma_max {lpmax:.3f}")

@@ -26,22 +26,22 @@ class Budget:
     tour_episodes: int        # random-policy episodes per task in the tour
     video_steps: int          # control steps shown in a task's video
     bench_steps: int          # control steps per task in the rollout benchmark
-    bc_demo_counts: tuple[int, ...]  # demonstrations BC learns from (chapter 1, `bench bc`)
+    bc_demo_counts: tuple[int, ...]  # demonstrations BC learns from (chapter 1, `sweep bc_demos`)
     bc_seeds: tuple[int, ...]        # BC training seeds per demonstration count
     bc_eval_episodes: int            # fresh episodes each BC policy is evaluated on
     bc_max_epochs: int               # BC's epoch limit (early stopping usually ends sooner)
-    # The imitation protocol shared by GAIL and DC (chapters 02 and 04, `bench gail|dc`): every
+    # The imitation protocol shared by GAIL and DC (chapters 02 and 04): every
     # learner gets the same demonstrations, seeds, environment interactions and evaluation.
     il_demos: int = 18               # demonstrations per run (the paper's multi-mode setting)
     il_seeds: tuple[int, ...] = (0, 1, 2)   # training seeds per task
     il_steps: int = 300_000          # environment interactions per run (after the BC warm start)
     il_eval_episodes: int = 50       # fresh episodes each learned policy is evaluated on
-    # The learning-rate sweep (the paper's Figure 4; `bench gail-lr`, later DC's): one rate for
+    # The learning-rate sweep (the paper's Figure 4; `sweep gail_lr|dc_lr`): one rate for
     # every optimiser of the learner, on one locomotion task, from the BC warm start.
     lr_sweep_lrs: tuple[float, ...] = (1e-4, 3e-4, 1e-3, 3e-3)   # the learning rates
     lr_sweep_seeds: tuple[int, ...] = (0, 1)   # training seeds per learning rate
     lr_sweep_steps: int = 150_000    # environment interactions per run (half of il_steps)
-    # SoftFlow (chapter 03, `bench softflow-fit`); the defaults are the lesson sizes.
+    # SoftFlow (chapter 03, `sweep softflow_fit`); the defaults are the lesson sizes.
     softflow_toy_points: int = 2000  # training points on the circle toy
     softflow_toy_iters: int = 600    # gradient steps of each toy flow
     softflow_toy_seeds: tuple[int, ...] = (0, 1, 2)   # seeds of the toy (and its sigma_max sweep)

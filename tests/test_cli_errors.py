@@ -78,25 +78,8 @@ CASES = [
      "does not match its sha256.*dc-lesson expert train --task hopper"),
     (["demos", "--task", "cartpole", "--stage", "demos"], None, "has no planner expert"),
     (["demos", "--task", "cartpole", "--first", "3"], None, "--first applies to --stage eval"),
-    (["bench", "gail", "--tasks", "cartpole", "--lr", "-1"], None, "positive finite number"),
-    (["bench", "gail", "--tasks", "cartpole", "--lr", "nan"], None, "positive finite number"),
-    (["bench", "gail-lr", "--lr", "1e-3"], None, "does not take --lr"),
-    (["bench", "dc"], "corrupt_demos", "reacher4.npz does not match its sha256"),
-    (["bench", "dc-ablation"], "corrupt_demos", "reacher4.npz does not match its sha256"),
-    (["bench", "gail"], "corrupt_demos", "reacher4.npz does not match its sha256"),
-    (["bench", "bc", "--tasks", "reacher4"], "corrupt_demos", "does not match its sha256"),
     (["tour", "--no-headline", "--out", "{tmp}/file.txt"], "a_file", "is a file"),
     (["tour"], "corrupt_demos", "reacher4.npz does not match its sha256"),
-    (["bench", "dc", "--seeds", "1"], None, "does not take --seeds"),
-    (["bench", "dc-ablation", "--tasks", "reacher4", "reacher2"], None, "runs on one task"),
-    (["bench", "dc-lr", "--steps", "-1"], None, "must be at least 1"),
-    (["bench", "bc", "--episodes", "0"], None, "must be at least 1"),
-    (["bench", "bc", "--epochs", "0"], None, "must be at least 1"),
-    (["bench", "bc", "--demos", "0"], None, "must be at least 1"),
-    (["bench", "bc", "--seeds", "-1"], None, "0 or more"),
-    (["bench", "bc", "--tasks", "reacher4", "--out", "{tmp}"], None, "is a folder"),
-    (["bench", "softflow-fit", "--out", "{tmp}/file.txt/x.json"], "a_file", "is a file"),
-    (["bench", "gail", "--steps", "2.5"], None, "must be a whole number"),
     (["train", "gail", "--task", "nope"], None, "nope"),
     (["train", "nope", "--task", "cartpole"], None, "unknown learner 'nope'"),
     (["train", "bc", "--task", "cartpole", "--demos", "0"], None, "must be at least 1"),
@@ -107,6 +90,13 @@ CASES = [
     (["train", "bc", "--task", "cartpole", "--save", "{tmp}"], None, "is a folder"),
     (["perf", "rollout", "--steps", "0"], None, "must be at least 1"),
     (["perf", "softflow", "--tasks", "cartpole"], None, "does not take --tasks"),
+    (["perf", "learners", "--steps", "5"], None, "does not take --steps"),
+    (["perf", "rollout", "--steps", "2.5"], None, "must be a whole number"),
+    (["perf", "rollout", "--tasks", "reacher4", "--out", "{tmp}"], None, "is a folder"),
+    (["train", "dc", "--task", "reacher4"], "corrupt_demos", "reacher4.npz does not match its sha256"),
+    (["train", "gail", "--task", "reacher4"], "corrupt_demos", "does not match its sha256"),
+    (["sweep", "table1", "--hours", "0"], None, "positive finite number"),
+    (["sweep", "table1", "--hours", "nan"], None, "positive finite number"),
 ]
 
 
@@ -173,7 +163,8 @@ def test_the_real_command_leaks_no_traceback(tmp_path):
     env = {**os.environ, "DC_LESSON_DATA": str(data), "DC_LESSON_BUDGET": "smoke",
            "PYTHONPATH": str(ROOT)}
     env.pop("DC_LESSON_DEBUG", None)
-    for argv in (["bench", "dc"], ["expert", "eval", "--task", "cartpole", "--episodes", "0"]):
+    for argv in (["train", "dc", "--task", "reacher4"],
+                 ["expert", "eval", "--task", "cartpole", "--episodes", "0"]):
         p = subprocess.run([sys.executable, "-m", "dc_lesson.cli", *argv], env=env,
                            capture_output=True, text=True, timeout=120)
         assert p.returncode == 2 and "Traceback" not in p.stderr, p.stderr
@@ -186,10 +177,8 @@ def test_help_is_for_people():
     assert "``" not in text and ":func:" not in text and ":mod:" not in text
     assert "expert eval" in text
     sub = {a.dest: a for a in parser._subparsers._group_actions}["cmd"].choices
-    bench, perf = sub["bench"].format_help(), sub["perf"].format_help()
-    for name, (summary, _) in cli.BENCHES.items():
-        assert name in bench and summary in bench
+    perf = sub["perf"].format_help()
     for name, (summary, _) in cli.PERFS.items():
         assert name in perf and summary in perf
-    assert "bc: training seeds" not in bench   # --seeds is not only BC's
+    assert "bench" not in sub, "the one-process studies are cell studies now: dc-lesson sweep"
     assert "--restart" in sub["expert"].format_help()

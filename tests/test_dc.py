@@ -231,3 +231,14 @@ def test_the_gail_reward_arm_trains_a_state_discriminator_and_resumes_identical(
     assert torch.equal(_params(resumed.policy), _params(full.policy))
     assert not torch.equal(_params(full.policy), _params(
         dc.train(TASK, start[1], TINY, policy=copy.deepcopy(start[0]), progress=False).policy))
+
+
+def test_the_preset_spends_the_budgets_interactions():
+    from dc_lesson import budget
+    for name in ("smoke", "lesson", "paper"):
+        b = budget.get(name)
+        c = dc.preset(b)
+        spent = c.loops * c.iterations * c.batch_size
+        assert b.il_steps - c.loops * c.batch_size < spent <= b.il_steps, name
+    assert dc.preset(budget.get("lesson"), loops=4).iterations * 4 * \
+        dc.DCConfig().batch_size <= budget.get("lesson").il_steps

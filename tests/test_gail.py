@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 import torch
 
-from dc_lesson.experiments import gail as bench_gail
+from dc_lesson.experiments import gail as gail_runs
 from dc_lesson import data
 from dc_lesson.algorithms import gail, ppo
 from dc_lesson.data import rollout
@@ -23,7 +23,6 @@ TIMING = {"steps_per_second"}
 def _three(r):
     """(policy, discriminator, log) of a TrainResult."""
     return r.policy, r.models["discriminator"], r.log
-
 
 
 def _pairs(trajectories):
@@ -269,56 +268,14 @@ def test_gail_improves_over_the_random_policy_on_cartpole():
     assert gain >= MIN_GAIN
 
 
-# -- the benchmark's pieces ----------------------------------------------------------------------
+# -- the study's config ----------------------------------------------------------------------
 
-def test_bench_config_scales_down_for_smoke_runs():
-    cfg = bench_gail.gail_config(4096, seed=2)
+def test_the_study_config_scales_down_for_smoke_runs():
+    cfg = gail_runs.gail_config(4096, seed=2)
     assert cfg.ppo.n_updates >= 4 and cfg.value_warmup < cfg.ppo.n_updates and cfg.seed == 2
-    full = bench_gail.gail_config(300_000, seed=1, lr=1e-3)
+    full = gail_runs.gail_config(300_000, seed=1, lr=1e-3)
     assert full.ppo.batch_size == gail.GAILConfig().ppo.batch_size
     assert full.ppo.lr == full.disc_lr == 1e-3 and full.ppo.total_steps == 300_000
-
-
-def test_features_round_trip_without_pickles(tmp_path):
-    arrays = {bench_gail.feature_key("reacher4", "GAIL", 0): np.random.rand(5, 2),
-              bench_gail.feature_key("reacher4", "GAIL", 1): np.random.rand(3, 2),
-              bench_gail.feature_key("reacher4", "expert"): np.random.rand(4, 2)}
-    bench_gail.save_features(bench_gail.features_path(tmp_path / "r.json"), arrays)
-    back = bench_gail.load_features(tmp_path / "r.json")
-    assert set(back) == set(arrays) and all(v.dtype == np.float32 for v in back.values())
-    assert bench_gail.pooled_features(back, "reacher4", "GAIL").shape == (8, 2)
-    with pytest.raises(KeyError):
-        bench_gail.pooled_features(back, "reacher4", "BC")
-    with pytest.raises(FileNotFoundError, match="bench gail"):
-        bench_gail.load_features(tmp_path / "missing.json")
-
-
-def test_summary_is_mean_and_sample_std_over_seeds():
-    def row(seed, v):
-        m = {"scaled_return": v, "return": v, "emd": v, "kl": v, "rkl": v,
-             "mode_shares": {"a": v, "b": 1 - v}}
-        return {"task": "t", "seed": seed, "BC": m, "GAIL": m}
-    s = bench_gail.summarise([row(0, 0.2), row(1, 0.4), row(2, 0.9)])
-    g = next(r for r in s if r["method"] == "GAIL")
-    assert g["emd_mean"] == pytest.approx(0.5)
-    assert g["emd_std"] == pytest.approx(np.std([0.2, 0.4, 0.9], ddof=1))
-    assert g["mode_shares_mean"]["b"] == pytest.approx(0.5)
-    assert "GAIL" in bench_gail.format_table(s)
-
-
-def test_on_target_counts_what_the_reacher_reward_counts():
-    from dc_lesson import tasks
-    from dc_lesson.tasks import reacher
-    env = tasks.make("reacher2", seed=0)
-    model = env.physics.model
-    assert model.geom_size[model.geom("finger").id][0] == bench_gail.FINGER_RADIUS
-    red, blue = reacher.target_positions(2)
-    radius = reacher.TARGET_SIZE + bench_gail.FINGER_RADIUS
-    f = np.array([red, red + [radius * 0.9, 0], blue, [0.0, 0.0], red + [radius * 1.1, 0]])
-    out = bench_gail.on_target(f, 2)
-    assert out["share"] == pytest.approx(0.6)
-    assert out["split"] == {"red": pytest.approx(2 / 3), "blue": pytest.approx(1 / 3)}
-    assert bench_gail.on_target(np.zeros((3, 2)), 2) == {"share": 0.0, "split": None}
 
 
 def test_a_state_only_discriminator_ignores_actions(demos1):

@@ -325,7 +325,7 @@ def test_same_seed_same_numbers():
     assert torch.equal(torch.rand(3), expected)
 
 
-# -- the fitting benchmark (`dc-lesson bench softflow-fit`) --------------------------------------
+# -- the fitting study (`dc-lesson sweep softflow_fit`) -------------------------------------------
 
 def test_fit_with_curve_is_fit_plus_a_held_out_curve():
     from dc_lesson.experiments import softflow as bs
@@ -378,17 +378,11 @@ def test_the_held_out_demonstrations_are_the_last_of_each_mode():
     assert (d["classify"](d["at_mode"]["backward"][:, d["feature"]]) == 1).mean() > 0.95
 
 
-def test_bench_softflow_fit_writes_the_result_and_its_arrays(tmp_path, monkeypatch):
-    from dc_lesson import budget, cli
+def test_the_whole_fit_study_in_one_process_gives_consistent_summaries_and_arrays():
+    from dc_lesson import budget
     from dc_lesson.experiments import softflow as bs
-    from dc_lesson.storage import read_result
-    monkeypatch.setenv(budget.ENV_VAR, "smoke")
-    out = tmp_path / "softflow_fit.json"
-    assert cli.main(["bench", "softflow-fit", "--out", str(out)]) == 0
-    res, arrays = read_result(out), bs.load_fit_arrays(out)
     b = budget.get("smoke")
-    assert res["command"].startswith("dc-lesson ")
-    assert res["budget"] == "smoke" and res["seeds"] == [0] and res["revision"]
+    res, arrays = bs.softflow_fit_benchmark(b, log=lambda *a: None)
     toy = res["toy"]
     assert toy["sigma_maxes"] == [0.0, 0.1] and len(toy["runs"]) == 2
     for s, row in toy["summary"].items():

@@ -148,7 +148,7 @@ class GAILConfig(_reward_ppo.PPOImitationConfig):
     reward_form: str = "gail"       # "gail": -log(1-D); "log_d": log D; "logit": log D/(1-D)
     reward_scale: float = 1.0       # multiplies the reward (PPO here does not normalise it)
     value_warmup: int = 2           # first iterations that train only the value network
-    bc_warm_start: bool = True      # start from bc.warm_start (bench_gail.run_one honours it;
+    bc_warm_start: bool = True      # start from bc.warm_start (experiments.gail.run_one honours it;
     #                                 train() itself starts from the policy it is given)
     entropy: float = 0.0            # entropy bonus lambda (overrides ppo.ent_coef)
     start_log_std: float | None = None   # the log-std a given start policy is set to (None:

@@ -10,8 +10,6 @@
   dc-lesson train LEARNER --task NAME   train one learner (bc, ppo, gail, dc) at the
                                         budget and evaluate it; --save writes its policy
   dc-lesson perf WHAT                   speed benchmarks (dc-lesson perf -h lists them)
-  dc-lesson bench WHAT --out FILE       the studies behind the book's stored results
-                                        (dc-lesson bench -h describes each)
   dc-lesson sweep STUDY [--dry-run]     a study's cells on Ray (resumable, accumulating);
                                         STUDY all: every study (--dry-run: the ledger)
   dc-lesson aggregate STUDY             its cells -> data/results/STUDY.json (intervals)
@@ -29,7 +27,6 @@ import os
 import sys
 
 from dc_lesson.cli._args import Parser, UsageError, positive_float, positive_int, seed_int
-from dc_lesson.cli.bench import BENCHES, cmd_bench
 from dc_lesson.cli.run import (PERFS, cmd_demos, cmd_expert, cmd_perf, cmd_tasks, cmd_tour,
                                cmd_train)
 from dc_lesson.cli.sweeps import cmd_aggregate, cmd_sweep
@@ -107,30 +104,6 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--repeats", type=positive_int, default=2,
                    help="learners: timed runs per path (default 2)")
     s.set_defaults(func=cmd_perf)
-    s = sub.add_parser("bench", help="the studies behind the book's stored results",
-                       description="The studies behind the book's stored results (sizes from "
-                                   "the budget unless given):\n" + _choices_help(BENCHES),
-                       formatter_class=raw)
-    s.add_argument("what", choices=list(BENCHES), metavar="WHAT", help=", ".join(BENCHES))
-    s.add_argument("--tasks", nargs="*", default=None,
-                   help="task names (default: each study's own; gail-lr, dc-ablation and "
-                        "dc-lr take one)")
-    s.add_argument("--steps", type=positive_int, default=None,
-                   help="gail, gail-lr, dc-lr: environment interactions per run")
-    s.add_argument("--out", default=None, help="write the result to this JSON file")
-    s.add_argument("--demos", type=positive_int, nargs="+", default=None,
-                   help="bc, bc-drift: demonstration counts (default: the budget's)")
-    s.add_argument("--seeds", type=seed_int, nargs="+", default=None,
-                   help="bc, bc-drift, gail, gail-lr, dc-lr: training seeds (default: the "
-                        "budget's)")
-    s.add_argument("--episodes", type=positive_int, default=None,
-                   help="bc, bc-drift: evaluation episodes per policy (default: the budget's)")
-    s.add_argument("--epochs", type=positive_int, default=None,
-                   help="bc, bc-drift: maximum training epochs (default: the budget's)")
-    s.add_argument("--lr", type=positive_float, default=None,
-                   help="gail: one learning rate for the policy, critic and discriminator "
-                        "(default: GAILConfig's)")
-    s.set_defaults(func=cmd_bench)
     s = sub.add_parser("sweep", help="run a study's cells on Ray (skips finished cells)")
     s.add_argument("study", help="a study of dc_lesson.experiments.studies (bc_demos, ...), "
                    "or all (every study in turn; with --dry-run the whole grid's ledger)")
@@ -199,4 +172,4 @@ def main(argv=None) -> int:
         return 1
 
 
-__all__ = ["BENCHES", "PERFS", "UsageError", "build_parser", "main"]
+__all__ = ["PERFS", "UsageError", "build_parser", "main"]

@@ -9,10 +9,8 @@ import math
 import shlex
 import sys
 
-# The options of ``bench`` and ``perf``, by the name argparse gives them.
-BENCH_OPTIONS = {"tasks": "--tasks", "demos": "--demos", "seeds": "--seeds",
-                 "episodes": "--episodes", "epochs": "--epochs", "steps": "--steps",
-                 "lr": "--lr"}
+# The options of ``perf``, by the name argparse gives them.
+OPTIONS = {"tasks": "--tasks", "steps": "--steps"}
 
 
 class UsageError(ValueError):
@@ -64,16 +62,14 @@ def check_output(path, folder: bool = False):
     return None if path is None else check_writable(path, folder=folder)
 
 
-def refuse_unused(what: str, table: dict, args, command: str, one_task=()) -> None:
+def refuse_unused(what: str, table: dict, args, command: str) -> None:
     """An option the command's ``what`` does not read is refused, never ignored."""
     used = table[what][1]
-    given = [BENCH_OPTIONS[k] for k in BENCH_OPTIONS
+    given = [OPTIONS[k] for k in OPTIONS
              if getattr(args, k, None) is not None and k not in used]
     if given:
         raise UsageError(f"{command} {what} does not take {', '.join(given)}; it reads "
-                         f"{', '.join(BENCH_OPTIONS[k] for k in BENCH_OPTIONS if k in used) or 'only --out'}")
-    if what in one_task and args.tasks is not None and len(args.tasks) != 1:
-        raise UsageError(f"{command} {what} runs on one task; give one name to --tasks")
+                         f"{', '.join(OPTIONS[k] for k in OPTIONS if k in used) or 'only --out'}")
     if args.tasks is not None and not args.tasks:
         raise UsageError("--tasks needs at least one task name (leave it out for the "
                          "default tasks)")

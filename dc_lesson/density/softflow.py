@@ -68,7 +68,7 @@ one per ``d f_i / d z_i``.  Here, instead:
    trace is about 6x cheaper) and evaluates the trace at the k nodes of a Gauss-Legendre rule
    on [0, 1] (exact for polynomials of degree 2k - 1 in t): 4 trace evaluations instead of 16
    to 32.  With rk4 (step 0.25) this is about 6x faster than the naive reference, within
-   about 5e-4 nats of it (``python -m dc_lesson.bench_softflow``).  ``quadrature=None``
+   about 5e-4 nats of it (``dc-lesson perf softflow``).  ``quadrature=None``
    integrates the trace jointly with z, the textbook way.
 
 Hutchinson's ``e^T J e`` uses the same forward mode with one vector instead of D (one
@@ -468,7 +468,7 @@ class SoftFlow(nn.Module):
         the k Gauss-Legendre nodes, and the trace only there: ``integral_0^1 tr dt ~
         sum_j w_j tr(t_j, z(t_j))``.  The trace, D times dearer than f, is then computed k times
         instead of at every stage (32 times for 8 rk4 steps); the error is that of the
-        quadrature of a smooth function of t, measured in ``dc_lesson.bench_softflow``.
+        quadrature of a smooth function of t, measured by ``dc-lesson perf softflow``.
         """
         if trace not in TRACES:
             raise ValueError(f"trace must be one of {TRACES}, not {trace!r}")

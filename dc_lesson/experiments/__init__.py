@@ -1,8 +1,8 @@
-"""The studies behind every stored result, one module per learner's studies, and the verdicts.
+"""The studies behind every stored result, the runs they are made of, and the verdicts.
 
-* ``bc``: scaled return against the number of demonstrations; compounding error (drift);
-* ``gail``: BC and GAIL on the multi-mode tasks; GAIL against its learning rate;
-* ``dc``: BC, GAIL and DC on the multi-mode tasks; DC's loop, learning-rate and ADMM ablations;
+* ``bc``: one BC run against the number of demonstrations; compounding error (drift);
+* ``gail``: one GAIL run from the BC warm start, both evaluated;
+* ``dc``: one DC run from the BC warm start, both evaluated (the hopper ablations' run);
 * ``softflow``: SoftFlow fitted to the circle toy and to expert states;
 * ``protocol``: what the studies share (evaluation seeds, stored mode features, the fresh
   expert reference and the expert row);
@@ -12,5 +12,6 @@
 * ``report``: what a chapter calls to render a number, an interval or a verdict;
 * ``headline``: the main job's comparison; ``tour``: the tour of the ten tasks.
 
-``dc-lesson bench NAME`` runs a study and writes its file under ``data/results/``.
+``dc-lesson sweep NAME`` runs a study's cells and ``dc-lesson aggregate NAME`` writes its file
+under ``data/results/``.
 """

@@ -20,9 +20,8 @@ the share of seeds collapsed (largest share at least ``COLLAPSE_SHARE``) beside 
 the multinomial floor of TV for that many episodes.
 
 The numbers come from the studies' aggregates (``dc-lesson sweep table1`` and the hopper
-ablations: cells against the fresh expert reference); :func:`legacy_observations` reads a
-record of ``dc-lesson bench`` (3 seeds, reference = all demonstrations) for a reader who runs
-one.  ``tests/test_claims_rules.py`` checks the rules on constructed records.
+ablations: cells against the fresh expert reference).  ``tests/test_claims_rules.py`` checks
+the rules on constructed records.
 """
 
 from __future__ import annotations
@@ -127,32 +126,6 @@ def _load(name):
         return None
 
 
-def legacy_observations(dc=None, gail=None, ablation=None, dc_lr=None, gail_lr=None) -> list:
-    """The whole-grid files of ``dc-lesson bench`` as observations (rows bc, dc, gail,
-    dc-loops=L, dc-update=admm, dc-lr=X, gail-lr=X; learning-rate rows on task ``lr``)."""
-    obs = []
-    meas = lambda m: {k: m.get(k) for k in ("scaled_return", "emd", "kl", "rkl", "mode_shares")}
-    for r in (dc or {}).get("runs", []):
-        base = {"task": r["task"], "seed": r["seed"], "n_demos": 0}
-        obs.append({**base, "row": "bc", **meas(r["bc"])})
-        obs.append({**base, "row": "dc", **meas(r["dc"]), "curve": r["curve"],
-                    "iterations": r["config"]["iterations"]})
-    for r in (gail or {}).get("runs", []):
-        obs.append({"task": r["task"], "seed": r["seed"], "n_demos": 0, "row": "gail",
-                    **meas(r["GAIL"]), "curve": r["curve"]})
-    for r in (ablation or {}).get("loops", []):
-        row = ("dc-loops=" + r["label"].split("= ")[1] if r["label"].startswith("L =")
-               else "dc-loops=1-long")
-        obs.append({"task": r["task"], "seed": r["seed"], "n_demos": 0, "row": row,
-                    **meas(r["dc"])})
-    for lr_file, name in ((dc_lr, "dc"), (gail_lr, "gail")):
-        for r in (lr_file or {}).get("runs", []):
-            m = r["dc"] if name == "dc" else r
-            obs.append({"task": "lr", "seed": r["seed"], "n_demos": 0,
-                        "row": f"{name}-lr={r['lr']:g}", "scaled_return": m["scaled_return"]})
-    return obs
-
-
 def observations() -> tuple[list, dict, str]:
     """``(observations, reference mode shares per task, where they came from)`` of the hopper
     ablation aggregates (rows ``dc-loops=L``, ``dc-update=admm``, ``dc-lr=X`` and
@@ -255,28 +228,8 @@ def verdicts(obs=None, reference_shares=None, source: str = "",
     return out
 
 
-# -- a Table I from the whole-grid records of `dc-lesson bench dc` and `bench gail` ---------------
-
-def table_one(dc_record: dict | None = None, gail_record: dict | None = None) -> list[dict]:
-    """The rows of our Table I: per task, BC (DC's start), GAIL and DC, with mean and std over
-    seeds of the scaled return, EMD, KL and RKL, and the mean mode shares.
-
-    BC's row comes from the DC record (the start of the DC runs; GAIL's start is the same
-    warm start, trained with the same seeds).  The book reads ``table1`` instead."""
-    rows = []
-    for s in (dc_record or {}).get("summary", []):
-        rows.append({**s, "method": s["method"].upper()})
-    for s in (gail_record or {}).get("summary", []):
-        if s["method"].upper() == "GAIL":
-            rows.append({**s, "method": "GAIL"})
-    order = {"BC": 0, "GAIL": 1, "DC": 2}
-    tasks = list(dict.fromkeys(r["task"] for r in rows))
-    return sorted(rows, key=lambda r: (tasks.index(r["task"]), order.get(r["method"], 9)))
-
-
 CLAIMS = (LOWEST_DIVERGENCE, HIGHER_RETURN, GAIL_COLLAPSES, DC_KEEPS_MODES, LOOPS, LR_ROBUST,
           FASTER, CONVERGES)
 
 __all__ = ["CLAIMS", "COLLAPSE_SHARE", "MIN_SEEDS", "Claim", "VERDICTS", "Verdict", "count", "judge",
-           "judge_claim", "legacy_observations", "observations", "table1_observations",
-           "table_one", "verdicts"]
+           "judge_claim", "observations", "paired_values", "table1_observations", "verdicts"]

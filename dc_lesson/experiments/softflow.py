@@ -1,22 +1,21 @@
-"""What SoftFlow learns: ``dc-lesson bench softflow-fit`` (chapter 03).
+"""What SoftFlow learns (chapter 03): the runs behind the ``softflow_fit`` cell study.
 
 (a) the circle toy: a plain CNF against SoftFlow, over the budget's seeds; (b) expert states
 of ``reacher4`` and ``halfcheetah2``: training curve, held-out NLL against a Gaussian and a
 KDE, each mode's log-density, the modes of the flow's samples; (c) a sigma_max sweep.  The
-result JSON and an ``.npz`` of figure arrays go to ``data/results/softflow_fit.*``.
+study (:mod:`dc_lesson.experiments.studies.softflow_fit`) runs them as cells;
+:func:`softflow_fit_benchmark` runs them all in one process, for a reader at a small budget.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import pathlib
 import time
 
 import numpy as np
 import torch
 
 from dc_lesson.density import softflow as sf
-
 
 
 # == what SoftFlow learns ==========================================================================
@@ -181,7 +180,7 @@ def task_data(task: str, n_states: int, seed: int = 0) -> dict:
     SETTLE_STEPS on (``at_mode``), with names, the feature slice and the task's classifier."""
     from dc_lesson import data, tasks
     if task not in FEATURE_IN_STATE:
-        raise FitBenchError(f"bench softflow-fit knows the tasks {', '.join(FEATURE_IN_STATE)}; "
+        raise FitBenchError(f"the softflow fit knows the tasks {', '.join(FEATURE_IN_STATE)}; "
                             f"not {task!r}")
     demos = data.load_demos(task)
     spec = tasks.spec(task)
@@ -307,7 +306,7 @@ def feature_kde(values: np.ndarray, grid: np.ndarray) -> list[float]:
 
 
 def softflow_fit_benchmark(b=None, tasks=FIT_TASKS, log=print) -> tuple[dict, dict]:
-    """Everything of ``bench softflow-fit`` at budget ``b`` (default: the current one).
+    """Every run of the ``softflow_fit`` study, in one process, at budget ``b`` (default: the current one).
 
     Returns ``(payload, arrays)``: the JSON-able result and the arrays for the figures (toy
     densities on a grid, the task flows' sampled mode features)."""
@@ -383,41 +382,3 @@ def softflow_fit_benchmark(b=None, tasks=FIT_TASKS, log=print) -> tuple[dict, di
                "toy": toy, "tasks": task_results,
                "wall_seconds": time.perf_counter() - t_start}
     return payload, arrays
-
-
-def arrays_path(out) -> pathlib.Path:
-    """The .npz beside a result file: ``softflow_fit.json`` -> ``softflow_fit.npz``."""
-    return pathlib.Path(out).with_suffix(".npz")
-
-
-def load_fit_arrays(out) -> dict:
-    """The figure arrays stored beside the JSON result (plain arrays, no pickles)."""
-    with np.load(arrays_path(out), allow_pickle=False) as z:
-        return {k: z[k] for k in z.files}
-
-
-def fit_main(out=None, command: str = "dc-lesson bench softflow-fit", threads: int = 1) -> int:
-    """``dc-lesson bench softflow-fit [--out FILE]``: runs :func:`softflow_fit_benchmark` on
-    ``threads`` torch threads and writes FILE (JSON) and the .npz beside it."""
-    import io
-
-    from dc_lesson import budget as _budget
-    from dc_lesson.storage import atomic_write_bytes, write_result
-    old = torch.get_num_threads()
-    torch.set_num_threads(threads)
-    try:
-        b = _budget.current()
-        print(f"bench softflow-fit at the {b.name} budget, {threads} thread(s)")
-        payload, arrays = softflow_fit_benchmark(b)
-    finally:
-        torch.set_num_threads(old)
-    print(f"done in {payload['wall_seconds']:.0f} s")
-    if out:
-        buf = io.BytesIO()
-        np.savez_compressed(buf, **{k: np.asarray(v, dtype=np.float32)
-                                    for k, v in arrays.items()})
-        atomic_write_bytes(arrays_path(out), buf.getvalue())
-        seeds = sorted(set(b.softflow_toy_seeds) | set(b.softflow_task_seeds))
-        path = write_result(out, payload, command=command, seeds=seeds)
-        print(f"wrote {path} and {arrays_path(out)}")
-    return 0

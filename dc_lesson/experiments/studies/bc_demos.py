@@ -20,7 +20,7 @@ import json
 from dc_lesson import data as _data
 from dc_lesson.algorithms import bc as _bc
 from dc_lesson.experiments import aggregate as _agg
-from dc_lesson.experiments import bc as _bench
+from dc_lesson.experiments import bc as _runs
 from dc_lesson.experiments import cells, protocol
 from dc_lesson.experiments.studies import _common
 
@@ -42,7 +42,7 @@ def cells_at(budget) -> list[cells.Cell]:
             for seed in budget.seeds_for(task):
                 out.append(cells.make_cell(
                     NAME, "bc", task, n, seed,
-                    {"eval_episodes": budget.bc_eval_episodes, "eval_seed": _bench.EVAL_SEED,
+                    {"eval_episodes": budget.bc_eval_episodes, "eval_seed": _runs.EVAL_SEED,
                      "emd_n_max": EMD_N_MAX, "bc": _bc_config(budget.bc_max_epochs)},
                     needs=(ref,)))
     return out + _common.expert_rows(NAME, TASKS, budget, budget.bc_eval_episodes)
@@ -56,7 +56,7 @@ def _run_bc(cell, needs):
     ref = _common.reference(needs)
     protocol.check_disjoint(cell.task, {"reference": (ref.seed, ref.n_episodes),
                                         "evaluation": (cfg["eval_seed"], cfg["eval_episodes"])})
-    row = _bench.run_one(cell.task, cell.n_demos, cell.seed, cfg["eval_episodes"],
+    row = _runs.run_one(cell.task, cell.n_demos, cell.seed, cfg["eval_episodes"],
                          reference=ref, max_epochs=cfg["bc"]["epochs"],
                          eval_seed=cfg["eval_seed"], emd_n_max=cfg["emd_n_max"])
     return {"measures": {k: row[k] for k in protocol.MEASURED},
@@ -73,7 +73,7 @@ def aggregate(records, budget) -> dict:
     full = [cells.full_result(r) for r in records if r["cell"]["learner"] == "bc"]
     runs = [{**{k: x[k] for k in x if k != "measures"}, **x["measures"]} for x in full]
     summary = _agg.table(bc_obs)
-    timing = _bench.summarise(runs)   # the wall times and epochs chapter 01 prints
+    timing = _runs.summarise(runs)   # the wall times and epochs chapter 01 prints
     for s in summary:
         t = next(x for x in timing if (x["task"], x["n_demos"]) == (s["task"], s["n_demos"]))
         s.update({k: t[k] for k in t if k.endswith("seconds_mean") or k.startswith("epochs")
@@ -95,7 +95,7 @@ def aggregate(records, budget) -> dict:
                            "expert_mode_shares": entry["expert_mode_shares"],
                            "expert": entry["expert"]["name"], "reference": ref["needs"][0]}
     return {"tasks": list(TASKS), "demo_counts": list(budget.bc_demo_counts),
-            "eval_episodes": budget.bc_eval_episodes, "eval_seed": _bench.EVAL_SEED,
+            "eval_episodes": budget.bc_eval_episodes, "eval_seed": _runs.EVAL_SEED,
             "eval_policy": "the Gaussian policy's mean action, clipped to the bounds",
             "demo_subset": "the first n demonstrations of data/demos/TASK.npz (nested subsets)",
             "measures_on": (f"mode features: {protocol.REFERENCE_EPISODES} fresh expert "

@@ -15,7 +15,7 @@ from dc_lesson.algorithms import bc as _bc
 from dc_lesson.data import rollout as _rollout
 from dc_lesson.evaluation import metrics as _metrics
 from dc_lesson.experiments import aggregate as _agg
-from dc_lesson.experiments import bc as _bench
+from dc_lesson.experiments import bc as _runs
 from dc_lesson.experiments import cells
 from dc_lesson.experiments.protocol import check_eval_seeds
 
@@ -25,7 +25,7 @@ TASKS = ("reacher4", "halfcheetah")
 
 def cells_at(b):
     counts = (min(b.bc_demo_counts), max(b.bc_demo_counts))
-    base = {"n_episodes": min(20, b.bc_eval_episodes), "eval_seed": _bench.EVAL_SEED}
+    base = {"n_episodes": min(20, b.bc_eval_episodes), "eval_seed": _runs.EVAL_SEED}
     out = []
     for task in TASKS:
         out.append(cells.make_cell(NAME, "expert", task, 0, 0, base))
@@ -50,7 +50,7 @@ def run_cell(cell, needs):
     trajs = _rollout.collect(cell.task, policy, c["n_episodes"], seed=c["eval_seed"],
                              progress=False)
     d = _metrics.distance_to_expert(reference, trajs)
-    return _bench.drift_summary({"curve": d})["curve"], None
+    return _runs.drift_summary({"curve": d})["curve"], None
 
 
 def aggregate(recs, b):

@@ -14,7 +14,7 @@ import dataclasses
 import json
 
 from dc_lesson.algorithms.dc import preset as dc_config
-from dc_lesson.experiments import cells, dc as _bench
+from dc_lesson.experiments import cells, dc as _runs
 from dc_lesson.experiments.studies import _common, _imitation as _im
 
 NAME = "dc_modes"
@@ -41,7 +41,7 @@ def run_dc(cell, needs):
     _im.check_config(cell, _dc_json(b, cell.seed, c["overrides"]))
     feats: dict = {}
     starts = _im.worker_cache(("dc", b.il_demos, b.bc_max_epochs, b.il_eval_episodes))
-    row = _bench.run_one(cell.task, cell.seed, b, _common.reference(needs),
+    row = _runs.run_one(cell.task, cell.seed, b, _common.reference(needs),
                          config_overrides=c["overrides"] or None, features=feats,
                          bc_cache=starts, curve=c.get("curve"))
     named = {("BC" if "__BC__" in k else "DC"): v for k, v in feats.items()}

@@ -11,7 +11,7 @@ from __future__ import annotations
 import dataclasses
 
 from dc_lesson.algorithms.gail import sized as gail_config
-from dc_lesson.experiments import cells, gail as _bench
+from dc_lesson.experiments import cells, gail as _runs
 from dc_lesson.experiments.studies import _common, _imitation as _im
 
 NAME = "gail_modes"
@@ -36,7 +36,7 @@ def run_gail(cell, needs):
     c = cell.config
     cfg = gail_config(c["steps"], cell.seed, lr=c.get("lr"))
     _im.check_config(cell, cfg.to_dict())
-    row, feats = _bench.run_one(cell.task, cell.seed, n_demos=c["n_demos"], steps=c["steps"],
+    row, feats = _runs.run_one(cell.task, cell.seed, n_demos=c["n_demos"], steps=c["steps"],
                                 eval_episodes=c["eval_episodes"],
                                 reference=_common.reference(needs),
                                 bc_max_epochs=c["bc_max_epochs"], config=cfg,
