@@ -738,4 +738,5 @@ print(f"this chapter ran in {time.perf_counter() - CHAPTER_START:.0f} s at budge
 #    evaluate with `evaluation.evaluate_both`. Do the mode shares change between the mean
 #    action and sampled actions? What would a policy need to reproduce the expert's
 #    25/25/25/25? Try `BCConfig(policy="mixture")` and compare the mode TV of the two
-#    (the `bc-mix-coin` row of Table I is this experiment over 5 seeds).
+#    (the `bc-mix-coin` row of Table I is this experiment over 5 seeds, `bc-full-coin` its
+#    Gaussian twin).
