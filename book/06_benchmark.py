@@ -441,6 +441,35 @@ display(Markdown("\n".join(f"* **{v.claim}** ({v.source}): {v.verdict}. {v.evide
                             for v in abl_verdicts)))
 
 # %% [markdown]
+# ## What the grid took
+#
+# Every cell records its wall time (one worker, one torch thread: the BC start, the run and
+# its evaluations). The mean minutes per cell, by learner and task, over the cells that have
+# run, and the whole grid's CPU time: the cells done, and the rest estimated from them
+# (`dc-lesson sweep table3 --dry-run` prints the same estimate, cell by cell). The cells ran on
+# whichever machine had them, some of them shared with another job, so read these as the
+# order of magnitude a reader's laptop will see.
+
+# %%
+from dc_lesson.experiments import aggregate as _aggregate, studies as _studies, sweep as _sweep
+
+if t3 is not None:
+    cost = pd.DataFrame(_aggregate.costs("table3", t3["budget"]))
+    display(cost.pivot(index="row", columns="task", values="minutes")
+            .reindex(index=[r for r in ("expert", *study.LEARNERS) if r in set(cost["row"])],
+                     columns=[t for t in study.TASKS if t in set(cost["task"])]).round(1))
+    plan = _sweep.plan(_studies.get("table3"), _budget.get(t3["budget"]), workers=2)
+    done_hours = sum(c["minutes"] * c["cells"] for c in cost.to_dict("records")) / 60
+    display(Markdown(
+        f"The grid at budget `{t3['budget']}`: {len(plan['grid'])} cells, "
+        f"{len(plan['grid']) - len(plan['todo'])} done in {done_hours:.1f} CPU-hours; "
+        + (f"{len(plan['todo'])} left, estimated at {plan['cpu_seconds'] / 3600:.1f} "
+           f"CPU-hours, so the whole grid is about "
+           f"{done_hours / 2 + plan['wall_seconds'] / 3600:.1f} hours of wall time on two "
+           f"workers." if plan["todo"] else
+           f"complete: {done_hours / 2:.1f} hours of wall time on two workers.")))
+
+# %% [markdown]
 # ## The book's verdicts in one table
 #
 # Every claim of the paper the book tests, with the rule it was judged by and the verdict the

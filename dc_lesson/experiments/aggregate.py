@@ -179,5 +179,37 @@ def _no_nan(x):
     return x
 
 
-__all__ = ["AggregateError", "KEY", "MEASURES", "grid_records", "iqm_over_tasks", "observation",
+def costs(study: str, budget_name: str, since: str | None = None,
+          until: str | None = None) -> list[dict]:
+    """Per (task, row) of ``study``'s cells at ``budget_name`` that have run: their mean wall
+    time in minutes (one worker, one torch thread; the whole cell: start, run and
+    evaluations), how many cells that is, and, for the learners that interact, the median
+    training seconds per 100,000 interactions (``train_per_100k``: the run alone; a median,
+    robust to a cell that shared its core).
+
+    ``since`` and ``until`` (ISO times, e.g. ``"2026-12-02T05:00"``) keep only the cells
+    written between them: cells written on different machines must not be averaged into one
+    cost."""
+    from dc_lesson.experiments import studies
+    walls: dict = {}
+    for c in studies.get(study).grid(_budget.get(budget_name)):
+        if c.study != study or not c.path().exists():
+            continue
+        r = _cells.read_record(c.path())
+        when = r["provenance"]["time"]
+        if (since is not None and when < since) or (until is not None and when >= until):
+            continue
+        steps, train = r["config"].get("steps"), r["timing"].get("train_seconds")
+        walls.setdefault((c.task, c.row), []).append(
+            (r["provenance"]["wall_seconds"],
+             train / steps * 1e5 if steps and train is not None else None))
+    out = []
+    for (t, row), w in walls.items():
+        per = [x for _, x in w if x is not None]
+        out.append({"task": t, "row": row, "minutes": sum(x for x, _ in w) / len(w) / 60,
+                    "cells": len(w), "train_per_100k": float(np.median(per)) if per else None})
+    return out
+
+
+__all__ = ["costs", "AggregateError", "KEY", "MEASURES", "grid_records", "iqm_over_tasks", "observation",
            "paired", "table", "write"]

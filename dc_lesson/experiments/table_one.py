@@ -339,33 +339,12 @@ def curves(rec: dict, task: str, row: str) -> list[dict]:
 
 
 def costs(rec: dict, since: str | None = None, until: str | None = None) -> list[dict]:
-    """Per (task, row) of the cells that have run: their mean wall time in minutes (one
-    worker, one torch thread), how many cells that is, and, for the learners that interact,
-    the median training seconds per 100,000 interactions (``train_per_100k``: the run alone,
-    not its start or its evaluations; a median, robust to a cell that shared its core).
-
-    ``since`` and ``until`` (ISO times, e.g. ``"2026-12-02T05:00"``) keep only the cells
-    written between them: cells written on different machines must not be averaged into one
-    cost."""
-    from dc_lesson import budget as _budget
-    from dc_lesson.experiments import cells as _cells, studies
-    walls: dict = {}
-    for c in studies.get("table1").grid(_budget.get(rec["budget"])):
-        if c.study == "table1" and c.path().exists():
-            r = _cells.read_record(c.path())
-            when = r["provenance"]["time"]
-            if (since is not None and when < since) or (until is not None and when >= until):
-                continue
-            steps, train = r["config"].get("steps"), r["timing"].get("train_seconds")
-            walls.setdefault((c.task, c.row), []).append(
-                (r["provenance"]["wall_seconds"],
-                 train / steps * 1e5 if steps and train is not None else None))
-    out = []
-    for (t, r), w in walls.items():
-        per = [x for _, x in w if x is not None]
-        out.append({"task": t, "row": r, "minutes": sum(x for x, _ in w) / len(w) / 60,
-                    "cells": len(w), "train_per_100k": statistics.median(per) if per else None})
-    return out
+    """Per (task, row) of the table1 cells that have run, their cost
+    (:func:`aggregate.costs`: minutes per cell, cells, training seconds per 100,000
+    interactions), from the cells written between ``since`` and ``until`` (ISO times: cells
+    of different machines must not be averaged into one cost)."""
+    from dc_lesson.experiments import aggregate as _agg
+    return _agg.costs("table1", rec["budget"], since, until)
 
 
 __all__ = ["CONTROLS", "PAPER_TABLE_I", "RESULT", "ROWS", "TASKS", "beside_paper", "controls",
