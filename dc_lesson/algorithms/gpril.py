@@ -183,14 +183,24 @@ class MADE(nn.Module):
         nn.init.zeros_(self.out.bias)
 
     def forward(self, x: torch.Tensor, c: torch.Tensor):
-        h = x
-        for i, layer in enumerate(self.layers):
-            h = nn.functional.linear(h, layer.weight * getattr(self, f"mask{i}"), layer.bias)
-            h = torch.tanh(h + self.context(c) if i == 0 else h)
-        out = nn.functional.linear(h, self.out.weight * getattr(self, f"mask{len(self.layers)}"),
-                                   self.out.bias)
-        mu, alpha = out.chunk(2, -1)
-        return mu, 5.0 * torch.tanh(alpha / 5.0)
+        return self.frozen(c)(x)
+
+    def frozen(self, c: torch.Tensor):
+        """``x -> forward(x, c)`` with the masked weights and the context's projection computed
+        once: sampling calls it D times per layer with the same weights and context (the
+        same operations on the same values, so the same numbers as :meth:`forward`)."""
+        weights = [layer.weight * getattr(self, f"mask{i}") for i, layer in enumerate(self.layers)]
+        w_out = self.out.weight * getattr(self, f"mask{len(self.layers)}")
+        context = self.context(c)
+
+        def apply(x: torch.Tensor):
+            h = x
+            for i, layer in enumerate(self.layers):
+                h = nn.functional.linear(h, weights[i], layer.bias)
+                h = torch.tanh(h + context if i == 0 else h)
+            mu, alpha = nn.functional.linear(h, w_out, self.out.bias).chunk(2, -1)
+            return mu, 5.0 * torch.tanh(alpha / 5.0)
+        return apply
 
 
 class ConditionalMAF(nn.Module):
@@ -238,8 +248,9 @@ class ConditionalMAF(nn.Module):
         u = torch.randn(c.shape[0], self.dim, generator=generator)
         for made in reversed(self.mades):
             y, x = u.flip(-1), torch.zeros_like(u)
+            step = made.frozen(c)
             for i in range(self.dim):              # x_i needs x_{<i}: D passes
-                mu, alpha = made(x, c)
+                mu, alpha = step(x)
                 x[:, i] = mu[:, i] + y[:, i] * torch.exp(alpha[:, i])
             u = x
         return u * self.x_std + self.x_mean
