@@ -349,8 +349,11 @@ def run(study_name: str, b: _budget.Budget | None = None, *, only=(), address=No
                 submit()
                 while pending:
                     running = min(len(pending), workers)
+                    until = ("" if deadline is None else ", deadline "
+                             + time.strftime("%H:%M", time.localtime(deadline)))
                     bar.set_postfix_str(f"running {running}, left {len(remaining) - running}, "
-                                        f"ETA {_fmt_s(_eta(remaining, walls, costs, b, workers))}")
+                                        f"ETA {_fmt_s(_eta(remaining, walls, costs, b, workers))}"
+                                        + until)
                     ready, _ = ray.wait(list(pending), num_returns=1)
                     cell = pending.pop(ready[0])
                     remaining.remove(cell)
