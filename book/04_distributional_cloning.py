@@ -531,7 +531,11 @@ if t1 is not None:
 # paired 95% interval excludes zero (lower mode TV and EMD are better, higher scaled return
 # is). `bc-mix - bc-full` and `bc-mix-coin - bc-full-coin` change the policy class and
 # nothing else; `dc-mix - dc` changes the start too (the Gaussian DC starts from the paper's
-# 70/30 BC), so it judges the whole recipe.
+# 70/30 BC), so it judges the whole recipe. The start `bc-mixstart` acts like `bc-mix` under
+# the mean action (resetting the spreads moves no component's mean or weight), while its
+# sampled row is the *exploring* policy PPO starts from, spreads e^-0.5, as the Gaussian
+# start's is: under sampled actions `dc-mix - bc-mixstart` measures the loop against that
+# exploring start, and `bc-mix`'s own sampled row is the mixture BC's learned spread.
 
 # %%
 from dc_lesson.experiments import table_one_mixture
