@@ -15,6 +15,8 @@ PERFS = {
     "softflow": ("SoftFlow's log-density and training speed against a naive CNF", set()),
     "learners": ("BC, PPO, GAIL and DC per phase, on the path before issue 14 and today's",
                  {"tasks"}),
+    "flow-fit": ("DC's density fit under cheaper solvers: time against held-out NLL",
+                 {"tasks"}),
 }
 
 
@@ -124,6 +126,12 @@ def cmd_perf(args) -> int:
     from dc_lesson import budget
     refuse_unused(args.what, PERFS, args, "perf")
     check_output(args.out)
+    if args.what == "flow-fit":
+        from dc_lesson.perf import flow_fit as perf_flow_fit
+        if args.tasks is not None and len(args.tasks) != 1:
+            raise UsageError("perf flow-fit runs on one task; give one name to --tasks")
+        perf_flow_fit.main(args.tasks, out=args.out, command=command_line())
+        return 0
     if args.what == "learners":
         from dc_lesson.perf import learners as perf_learners
         perf_learners.main(args.tasks or None, args.learners or None, repeats=args.repeats,

@@ -1,0 +1,146 @@
+"""How cheap can DC's density fit be: ``dc-lesson perf flow-fit`` (issue 14, item 3).
+
+DC fits a SoftFlow ``P_w`` to expert states at the start of every run (and refits it in later
+loops); in a DC cell that fit is a fifth of the time.  This benchmark fits DC's first flow
+(the budget's DC preset: its states, iterations, widths and learning rate) on a task's
+demonstration states under cheaper training settings, and scores each fit by its held-out
+negative log-likelihood on other expert states, twice: with the flow's own evaluation solver
+(what DC's reward uses) and with the reference solver (dopri5 at tolerances 1e-5, the trace
+integrated jointly), so that a coarse training solver cannot look good by exploiting a coarse
+evaluation.
+
+Variants (:data:`VARIANTS`): today's (rk4, step 0.25: four steps of the ODE), rk4 at step 0.5
+(two steps), Euler at step 0.25, and today's solver with half the iterations.  Per variant and
+seed: fit seconds, both held-out NLLs; the table gives the time ratio to today's and the
+reference NLL's change (positive: worse), and :func:`cheapest_within` names the cheapest
+variant whose reference NLL is no worse than today's by more than ``TOLERANCE`` nats on every
+seed.  Times are one torch thread; they drift with the machine's load, the ratios less so.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import platform
+import time
+
+import numpy as np
+import torch
+
+from dc_lesson import budget as _budget, data
+from dc_lesson.algorithms import dc as _dc
+from dc_lesson.density import softflow as _sf
+from dc_lesson.storage import check_writable, write_result
+
+TOLERANCE = 0.1   # nats of held-out NLL (reference solver) a cheaper fit may lose
+
+# name -> changes to DC's flow config (today's: no change)
+VARIANTS = {
+    "today: rk4, step 0.25": {},
+    "rk4, step 0.5": {"step_size": 0.5},
+    "euler, step 0.25": {"solver": "euler"},
+    "rk4, step 0.25, half the iterations": {"iterations": "half"},
+}
+
+
+def _states(task: str, n_train: int, n_test: int, seed: int = 0):
+    demos = data.load_demos(task)
+    obs = np.concatenate([t.observations for t in demos.trajectories]).astype(np.float32)
+    if n_train + n_test > len(obs):
+        n_test = len(obs) - n_train
+    idx = np.random.default_rng(seed).permutation(len(obs))
+    return obs[idx[:n_train]], torch.as_tensor(obs[idx[n_train:n_train + n_test]])
+
+
+def _config(b: _budget.Budget, changes: dict, seed: int) -> _sf.SoftFlowConfig:
+    base = _dc.preset(b, seed).flow_config()
+    changes = dict(changes)
+    if changes.get("iterations") == "half":
+        changes["iterations"] = max(1, base.iterations // 2)
+    return dataclasses.replace(base, **changes, seed=seed)
+
+
+def run(task: str = "reacher4", seeds=(0, 1), b: _budget.Budget | None = None,
+        n_test: int = 1000) -> dict:
+    """Every variant on every seed: ``{"rows": [...], "summary": [...]}``."""
+    b = b or _budget.current()
+    n_train = _dc.preset(b).flow_states
+    train, test = _states(task, n_train, n_test)
+    for changes in VARIANTS.values():   # untimed: first calls pay for imports and caches
+        _sf.fit(train[:64], dataclasses.replace(_config(b, changes, 0), iterations=1),
+                progress=False)
+    rows = []
+    for name, changes in VARIANTS.items():
+        for seed in seeds:
+            cfg = _config(b, changes, seed)
+            t0 = time.perf_counter()
+            flow, _ = _sf.fit(train, cfg, progress=False)
+            fit_s = time.perf_counter() - t0
+            with torch.no_grad():
+                own = float(-flow.log_prob(test).mean())
+                ref = float(-flow.log_prob(test, solver="dopri5", rtol=1e-5, atol=1e-5,
+                                           quadrature=None).mean())
+            rows.append({"variant": name, "seed": int(seed), "fit_seconds": fit_s,
+                         "iterations": cfg.iterations, "solver": cfg.solver,
+                         "step_size": cfg.step_size, "nll_own_solver": own,
+                         "nll_reference": ref})
+    return {"task": task, "train_states": int(len(train)), "test_states": int(len(test)),
+            "rows": rows, "summary": summarise(rows), "tolerance": TOLERANCE}
+
+
+def summarise(rows: list[dict]) -> list[dict]:
+    """Per variant: mean fit seconds, time ratio today / variant, and the per-seed change of
+    the reference NLL against today's same seed (positive: worse), with its largest value."""
+    today = next(iter(VARIANTS))
+    base = {r["seed"]: r for r in rows if r["variant"] == today}
+    out = []
+    for name in VARIANTS:
+        mine = [r for r in rows if r["variant"] == name]
+        if not mine:
+            continue
+        delta = [r["nll_reference"] - base[r["seed"]]["nll_reference"] for r in mine
+                 if r["seed"] in base]
+        fit = float(np.mean([r["fit_seconds"] for r in mine]))
+        out.append({"variant": name, "fit_seconds": fit,
+                    "speedup": float(np.mean([base[r["seed"]]["fit_seconds"] for r in mine])
+                                     / fit),
+                    "nll_reference": float(np.mean([r["nll_reference"] for r in mine])),
+                    "nll_change": delta, "worst_nll_change": max(delta) if delta else None})
+    return out
+
+
+def cheapest_within(summary: list[dict], tolerance: float = TOLERANCE) -> str | None:
+    """The fastest variant whose reference NLL is no worse than today's by more than
+    ``tolerance`` nats on any seed (today's itself qualifies)."""
+    ok = [s for s in summary if s["worst_nll_change"] is not None
+          and s["worst_nll_change"] <= tolerance]
+    return max(ok, key=lambda s: s["speedup"])["variant"] if ok else None
+
+
+def format_table(result: dict) -> str:
+    lines = [f"DC's first SoftFlow fit on {result['task']}: {result['train_states']} states, "
+             f"held-out NLL on {result['test_states']} others (nats; reference: dopri5 1e-5)",
+             f"{'variant':<38}{'fit s':>8}{'speed-up':>10}{'NLL ref':>10}{'worst change':>14}"]
+    for s in result["summary"]:
+        lines.append(f"{s['variant']:<38}{s['fit_seconds']:>8.1f}{s['speedup']:>9.2f}x"
+                     f"{s['nll_reference']:>10.3f}{s['worst_nll_change']:>+14.3f}")
+    best = cheapest_within(result["summary"], result["tolerance"])
+    lines.append(f"cheapest within {result['tolerance']} nats of today's on every seed: {best}")
+    return "\n".join(lines)
+
+
+def main(tasks=None, seeds=(0, 1), out=None, command: str = "dc-lesson perf flow-fit") -> dict:
+    if out:
+        check_writable(out)
+    torch.set_num_threads(1)
+    task = (tasks or ["reacher4"])[0]
+    result = run(task, seeds)
+    print(format_table(result))
+    if out:
+        write_result(out, {"benchmark": "flow-fit", "threads": 1, "machine": platform.node(),
+                           **result}, command=command, seeds=list(seeds))
+        print(f"wrote {out}")
+    return result
+
+
+__all__ = ["TOLERANCE", "VARIANTS", "cheapest_within", "format_table", "main", "run",
+           "summarise"]
