@@ -339,9 +339,9 @@ def run(study_name: str, b: _budget.Budget | None = None, *, only=(), address=No
                 pending = {}
 
                 def submit():   # fill the free workers with the cells that fit
-                    go = startable([id(c) for c in queue], estimates,
-                                   workers - len(pending), time.time(), deadline)
-                    for c in [c for c in queue if id(c) in set(go)]:
+                    go = set(startable([id(c) for c in queue], estimates,
+                                       workers - len(pending), time.time(), deadline))
+                    for c in [c for c in queue if id(c) in go]:
                         queue.remove(c)
                         needs = [_cells.load(n, root) for n in c.needs]
                         pending[remote.remote(c, needs)] = c

@@ -25,16 +25,14 @@ from __future__ import annotations
 from dc_lesson.experiments.report import fmt_entry
 from dc_lesson.experiments.table_one import TASKS, paired, word
 
-# (mixture row, Gaussian row, the learner, the demonstrations, what the difference isolates)
+# (mixture row, the row it is compared with, the demonstrations, what the difference isolates)
 COMPARISONS = (
-    ("bc-mix", "bc-full", "BC", "realizable", "the policy class alone"),
-    ("bc-mix-coin", "bc-full-coin", "BC", "hidden coin", "the policy class alone"),
-    ("dc-mix", "bc-mixstart", "DC", "realizable", "the mixture DC's loop against its start"),
-    ("dc-mix-coin", "bc-mixstart-coin", "DC", "hidden coin",
-     "the mixture DC's loop against its start"),
-    ("dc-mix", "dc", "DC", "realizable", "the whole mixture recipe (starts differ too)"),
-    ("dc-mix-coin", "dc-coin", "DC", "hidden coin",
-     "the whole mixture recipe (starts differ too)"),
+    ("bc-mix", "bc-full", "realizable", "the policy class alone"),
+    ("bc-mix-coin", "bc-full-coin", "hidden coin", "the policy class alone"),
+    ("dc-mix", "bc-mixstart", "realizable", "the mixture DC's loop against its start"),
+    ("dc-mix-coin", "bc-mixstart-coin", "hidden coin", "the mixture DC's loop against its start"),
+    ("dc-mix", "dc", "realizable", "the whole mixture recipe (starts differ too)"),
+    ("dc-mix-coin", "dc-coin", "hidden coin", "the whole mixture recipe (starts differ too)"),
 )
 
 # measure, label, +1 when higher is better, -1 when lower is
@@ -46,7 +44,7 @@ def table(rec: dict, actions: str = "mean", digits: int = 3) -> list[dict]:
     """One dict per (comparison, task): the rows, paired seeds, and per measure ``a - b`` as
     ``mean [lo, hi]`` with its word."""
     out = []
-    for a, b, learner, demos, what in COMPARISONS:
+    for a, b, demos, what in COMPARISONS:
         for task in TASKS:
             e = paired(rec, a, b, task, actions)
             row = {"demonstrations": demos, "a - b": f"{a} - {b}", "task": task,
@@ -94,7 +92,7 @@ def lines(rec: dict, actions: str = "mean") -> list[str]:
     ``claims.MIN_SEEDS`` seeds), naming the tasks."""
     t = tally(rec, actions)
     out = []
-    for a, b, learner, demos, what in COMPARISONS:
+    for a, b, demos, what in COMPARISONS:
         per = t[(a, b)]
         said = {m: _count(per[m]) for m, _, _ in MEASURES}
         bits = ([f"every measure: {said[MEASURES[0][0]]}"] if len(set(said.values())) == 1
