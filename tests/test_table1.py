@@ -456,3 +456,83 @@ def test_the_aggregate_pairs_the_mode_tv_per_seed(monkeypatch):
     e = table_one.paired(out, "bc-mix", "bc-full", "reacher2")
     assert e["mode_tv_diffs"] == pytest.approx([-0.2 - 0.01 * s for s in range(5)])
     assert table_one.word(e, "mode_tv") == "lower"
+
+
+def _modes_rec(tv, diff, n_seeds=10):
+    """A table1 aggregate for the mode answer: ``tv[(task, row)]`` a row's mean mode TV (its
+    interval +-0.03), ``diff[(row, task)]`` the paired mode-TV difference ``dc - row``."""
+    from dc_lesson.evaluation import stats
+    rng = np.random.default_rng(1)
+    modes = [{"task": t, "row": r, "tv_ci": {"mean": v, "lo": v - 0.03, "hi": v + 0.03}}
+             for (t, r), v in tv.items()]
+    pairs = []
+    for (row, task), d in diff.items():
+        x = rng.normal(0.5, 0.1, n_seeds)
+        pairs.append({"task": task, "a": "dc", "b": row, "n_seeds": n_seeds,
+                      "mode_tv": stats.paired_diff(list(x + d + rng.normal(0, 0.005, n_seeds)),
+                                                   list(x)).to_dict()})
+    return {a: {"paired": pairs, "modes": modes, "table": [], "expert": []}
+            for a in ("mean", "sampled")}
+
+
+def test_the_mode_answer_judges_dc_against_the_better_trained_bc_and_the_floor():
+    from dc_lesson.experiments import table_one_modes as tm
+    tasks = ("reacher2", "reacher4", "halfcheetah2")
+    tv = {**{(t, "bc-full"): 0.40 for t in tasks}, **{(t, "bc-lib"): 0.20 for t in tasks},
+          **{(t, "expert"): 0.10 for t in tasks}, **{(t, "dc"): 0.30 for t in tasks}}
+    tv[("halfcheetah2", "bc-lib")] = 0.80          # the library's BC fails there: bc-full is
+    tv[("halfcheetah2", "dc")] = 0.12              # the comparator, and DC sits at the floor
+    diff = {**{("bc", t): -0.2 for t in tasks}, **{("bc-lib", t): +0.1 for t in tasks},
+            **{("bc-full", t): -0.1 for t in tasks}}
+    rec = _modes_rec(tv, diff)
+    assert [tm.best_bc(rec, t) for t in tasks] == ["bc-lib", "bc-lib", "bc-full"]
+    a = tm.against(rec)
+    assert [a[tm.BEST_BC][t][:2] for t in tasks] == [("bc-lib", "worse"), ("bc-lib", "worse"),
+                                                     ("bc-full", "better")]
+    assert all(a["bc"][t][1] == "better" for t in tasks)          # lower TV is better
+    assert a["gail"]["reacher2"][1] == "not run yet"
+    fl = tm.floor(rec)
+    assert fl["reacher2"][0] == "above the expert's"
+    assert fl["halfcheetah2"][0] == "not distinguished from the expert's"
+    c = tm.conclusion(rec)
+    assert "more modes than the better-trained BC on 1 of 3 tasks: halfcheetah2 only" in c
+    assert "than the expert's own does (2 of 3 tasks: reacher2, reacher4)" in c
+    lines = tm.lines(rec)
+    assert "worse on 2 (reacher2, reacher4); better on 1" not in lines[1]   # order is fixed
+    assert "better on 1 (halfcheetah2); worse on 2 (reacher2, reacher4)" in lines[1]
+
+
+def test_the_mode_answer_has_one_sentence_per_outcome():
+    from dc_lesson.experiments import table_one_modes as tm
+    tasks = ("reacher2", "reacher4", "halfcheetah2")
+    tv = {**{(t, "bc-full"): 0.40 for t in tasks}, **{(t, "bc-lib"): 0.30 for t in tasks},
+          **{(t, "expert"): 0.10 for t in tasks}, **{(t, "dc"): 0.11 for t in tasks}}
+
+    def said(d_start, d_best, n_seeds=10):
+        diff = {**{("bc", t): d_start for t in tasks}, **{("bc-lib", t): d_best for t in tasks}}
+        return tm.conclusion(_modes_rec(tv, diff, n_seeds))
+
+    assert "better than BC can" in said(-0.2, -0.2)
+    assert "no more than BC trained well" in said(-0.2, 0.0)
+    assert "no more than BC trained well" in said(-0.2, +0.2)
+    assert "no more modes than the start it is given" in said(0.0, 0.0)
+    assert "no more modes than the start it is given" in said(+0.2, +0.2)
+    # four seeds are too few for a word: no claim either way
+    assert "too few paired seeds to say" in said(-0.2, -0.2, n_seeds=4)
+    assert "on no task is its mode TV distinguishable from the expert's own" in said(-0.2, 0.0)
+
+
+def test_the_mode_answer_flags_a_comparator_that_reaches_nothing():
+    from dc_lesson.experiments import table_one_modes as tm
+    tasks = ("reacher2", "reacher4", "halfcheetah2")
+    tv = {**{(t, "bc-lib"): 0.2 for t in tasks}, **{(t, "dc"): 0.3 for t in tasks}}
+    rec = _modes_rec(tv, {**{("bc", t): -0.3 for t in tasks},
+                          **{("bc-lib", t): 0.1 for t in tasks}})
+    rec["sampled"]["table"] = [{"task": "reacher4", "row": "bc",
+                                "mode_shares_mean": {"red": 0.05, "none": 0.95}},
+                               {"task": "reacher2", "row": "bc",
+                                "mode_shares_mean": {"red": 0.6, "none": 0.4}}]
+    line = tm.lines(rec, "sampled")[0]
+    assert "a low bar where most of its episodes arrive nowhere (none: reacher4 0.95)" in line
+    assert "low bar on reacher4," in tm.conclusion(rec, "sampled")
+    assert "low bar" not in tm.conclusion(rec, "mean")     # the mean rows reach their modes
