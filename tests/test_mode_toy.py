@@ -29,6 +29,12 @@ def test_reverse_kl_seeks_one_mode_with_a_width(results):
     assert not toy.covers_both(g)
 
 
+def test_reverse_kl_with_a_mixture_keeps_both_modes(results):
+    # the entropy term pays for the second component (chapter 04 says so beside the table)
+    m = results[("mixture", "reverse_kl")]
+    assert toy.covers_both(m, 0.4) and min(m.weights) > 0.4
+
+
 @pytest.mark.parametrize("family", toy.FAMILIES)
 def test_the_cross_entropy_term_collapses_onto_one_point(results, family):
     r = results[(family, "cross_entropy")]
