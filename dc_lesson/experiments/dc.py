@@ -1,6 +1,6 @@
 """DC from the BC warm start on one task and seed, both policies evaluated alike: the run
-behind the ``dc_modes`` study and the hopper ablations (``dc_ablation``, ``dc_lr``;
-:mod:`dc_lesson.experiments.studies`).
+behind the hopper ablations' DC cells (``dc_ablation``, ``dc_lr``, through
+:mod:`dc_lesson.experiments.studies._learners`).
 
 :func:`run_one`:
 

@@ -1,5 +1,5 @@
 """GAIL from the BC warm start on one task and seed, both policies evaluated alike: the run
-behind the ``gail_modes`` and ``gail_lr`` cell studies (:mod:`dc_lesson.experiments.studies`).
+behind the ``gail_lr`` cell study (:mod:`dc_lesson.experiments.studies._learners`).
 
 :func:`run_one`:
 

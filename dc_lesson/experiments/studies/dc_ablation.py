@@ -13,7 +13,7 @@ pi's parameters, ADMM's residuals: Figure 6).
 from dc_lesson.algorithms.dc import preset as dc_config
 from dc_lesson.experiments import cells
 from dc_lesson.experiments.studies import _common, _imitation as _im
-from dc_lesson.experiments.studies.dc_modes import dc_cell, run_dc
+from dc_lesson.experiments.studies._learners import dc_cell, run_dc
 
 NAME = "dc_ablation"
 TASK = _im.ABLATION_TASK

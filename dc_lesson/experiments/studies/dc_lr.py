@@ -4,7 +4,7 @@
 
 from dc_lesson.experiments import cells
 from dc_lesson.experiments.studies import _common, _imitation as _im
-from dc_lesson.experiments.studies.dc_modes import dc_cell, run_dc
+from dc_lesson.experiments.studies._learners import dc_cell, run_dc
 
 NAME = "dc_lr"
 

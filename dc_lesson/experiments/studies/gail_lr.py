@@ -7,7 +7,7 @@ seed's BC warm start for ``budget.lr_sweep_steps`` interactions (variant ``lr=..
 
 from dc_lesson.experiments import cells
 from dc_lesson.experiments.studies import _common, _imitation as _im
-from dc_lesson.experiments.studies.gail_modes import gail_cell, run_gail
+from dc_lesson.experiments.studies._learners import gail_cell, run_gail
 
 NAME = "gail_lr"
 
