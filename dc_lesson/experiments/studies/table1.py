@@ -286,6 +286,8 @@ PAIRS = (("dc", "bc"), ("dc", "gail"), ("dc", "bc-all"), ("dc", "bc-full"), ("ga
          ("dc", "dc-noppo"), ("dc", "dc-raw"), ("dc", "dc-gailreward"), ("gail", "gail-state"),
          ("gail", "gail-noisy"),
          ("dc", "dril"), ("dc", "pwil"), ("dc", "ndi"), ("dc", "gpril"),
+         # each baseline against the BC start it shares with DC and GAIL (chapter 05)
+         ("dril", "bc"), ("pwil", "bc"), ("ndi", "bc"), ("gpril", "bc"),
          ("bc-mix", "bc-full"), ("dc-mix", "dc"), ("dc-coin", "bc-coin"),
          ("bc-mix-coin", "bc-coin"), ("dc-mix-coin", "dc-coin"), ("gail-coin", "bc-coin"),
          ("dc-coin", "gail-coin"),
