@@ -77,8 +77,11 @@ def tally(rec: dict, actions: str = "mean") -> dict:
     return out
 
 
-def _count(by_verdict: dict) -> str:
+def count_words(by_verdict: dict) -> str:
+    """``{verdict: [tasks]}`` in words: ``better on every task`` or ``better on 2 (reacher2,
+    reacher4); worse on 1 (halfcheetah2)``, verdicts in a fixed order."""
     order = ("better", "worse", "no difference detected", "too few seeds", "not run yet")
+    by_verdict = {v: ts for v, ts in by_verdict.items() if ts}
     if len(by_verdict) == 1:
         return f"{next(iter(by_verdict))} on every task"
     parts = [f"{v} on {len(by_verdict[v])} ({', '.join(by_verdict[v])})"
@@ -94,7 +97,7 @@ def lines(rec: dict, actions: str = "mean") -> list[str]:
     out = []
     for a, b, demos, what in COMPARISONS:
         per = t[(a, b)]
-        said = {m: _count(per[m]) for m, _, _ in MEASURES}
+        said = {m: count_words(per[m]) for m, _, _ in MEASURES}
         bits = ([f"every measure: {said[MEASURES[0][0]]}"] if len(set(said.values())) == 1
                 else [f"{label}: {said[m]}" for m, label, _ in MEASURES])
         out.append(f"* **`{a}` against `{b}`** ({demos} demonstrations; {what}): "
@@ -117,4 +120,5 @@ def shares(rec: dict, task: str, row: str, actions: str = "mean") -> dict:
     return {k: got.get(k, 0.0) for k in [*order, "none"]}
 
 
-__all__ = ["COMPARISONS", "MEASURES", "lines", "shares", "table", "tally", "verdict"]
+__all__ = ["COMPARISONS", "MEASURES", "count_words", "lines", "shares", "table", "tally",
+           "verdict"]

@@ -32,7 +32,7 @@ from __future__ import annotations
 
 from dc_lesson.experiments.report import fmt
 from dc_lesson.experiments.table_one import TASKS, paired
-from dc_lesson.experiments.table_one_mixture import verdict
+from dc_lesson.experiments.table_one_mixture import count_words, verdict
 
 BEST_BC = "best-bc"       # the stand-in name of the better-trained BC, resolved per task
 BCS = ("bc-full", "bc-lib")
@@ -45,7 +45,6 @@ COMPARATORS = (
     ("gail", "GAIL"),
 )
 LOW_BAR = 0.5   # a comparator whose episodes mostly arrive nowhere is flagged as a low bar
-ORDER = ("better", "worse", "no difference detected", "too few seeds", "not run yet")
 
 
 def _tv(rec: dict, task: str, row: str, actions: str) -> dict | None:
@@ -102,12 +101,8 @@ def _tasks(by_task: dict, wanted: str) -> list[str]:
 
 
 def _words(by_task: dict) -> str:
-    """``better on every task`` or ``better on 2 (reacher2, reacher4); worse on 1 (...)``."""
-    groups = {v: _tasks(by_task, v) for v in ORDER}
-    groups = {v: ts for v, ts in groups.items() if ts}
-    if len(groups) == 1:
-        return f"{next(iter(groups))} on every task"
-    return "; ".join(f"{v} on {len(ts)} ({', '.join(ts)})" for v, ts in groups.items())
+    """The per-task verdicts of one comparator in words (:func:`table_one_mixture.count_words`)."""
+    return count_words({v: _tasks(by_task, v) for _, v, _ in by_task.values()})
 
 
 def lines(rec: dict, actions: str = "mean") -> list[str]:
