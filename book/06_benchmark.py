@@ -216,6 +216,28 @@ else:
         display(pd.DataFrame(agree))
 
 # %% [markdown]
+# ### So, what does the benchmark say?
+#
+# A verdict alone can mislead on this grid. Where the common BC start already earns the
+# expert's return, "DC outperforms BC" can only be contradicted or inconclusive, and a loss of
+# a thousandth of the expert's return is as *significant* as a large one when every seed
+# agrees; where the start sits at the random level, every RL learner starts from nothing it
+# can use. So the answer below is rendered by a fixed rule (`table_three_words`, declared
+# after the paired rule, which it never changes) that says beside each verdict where the
+# start left no room: *at the ceiling* when BC's mean scaled return at that count is within
+# the margin (0.1) of the expert's 1, *at the random level* when within it of random's 0.
+
+# %%
+from dc_lesson.experiments import table_three_words
+
+if t3 is None:
+    print("not run yet: dc-lesson sweep table3 && dc-lesson aggregate table3")
+else:
+    display(Markdown(f"**The answer.** {table_three_words.conclusion(t3)}\n\n"
+                     "**Each claim**, by (task, demonstration count):\n\n"
+                     + "\n".join(table_three_words.lines(t3))))
+
+# %% [markdown]
 # Kendall's $\tau$ is computed only where the paper and we have the same demonstration count:
 # never for Humanoid (the paper's 80-240 against our at most 25). Where the paper's means lie
 # within one of its standard deviations of each other (Ant at 18, say), its ordering is

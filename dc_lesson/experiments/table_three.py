@@ -229,14 +229,15 @@ def _non_inferior(obs, n) -> dict:
             word = "contradicted"
         else:
             word = "inconclusive"
-        per_task.append((task, word))
+        per_task.append((task, word, ci.mean, ci.lo, ci.hi, len(seeds)))
         band = (f"[{ci.lo:+.3f}, {ci.hi:+.3f}]" if np.isfinite(ci.lo) and np.isfinite(ci.hi)
                 else "(no interval)")
         few = f" (fewer than {_claims.MIN_SEEDS} seeds)" if len(seeds) < _claims.MIN_SEEDS else ""
         parts.append(f"{task}: dc - gail = {ci.mean:+.3f} {band} over {len(seeds)} seeds -> "
                      f"{word}{few}")
     return {"claim": COMPARABLE, "n_demos": n, "verdict": _claims.count(per_task),
-            "evidence": "; ".join(parts) or "no paired results", "rule": COMPARABLE_RULE}
+            "evidence": "; ".join(parts) or "no paired results", "rule": COMPARABLE_RULE,
+            "per_task": tuple(per_task)}
 
 
 def _lowest_other(obs) -> list[dict]:
@@ -262,7 +263,8 @@ def _curve_mean(o) -> float | None:
 def verdicts(rec: dict) -> list[dict]:
     """Each claim's verdict per demonstration count (DRIL's and the curves' at the fewest
     only, BC's growth once, fewest against most), over the tasks that have run:
-    ``{"claim", "n_demos", "verdict", "evidence", "rule"}``."""
+    ``{"claim", "n_demos", "verdict", "evidence", "rule", "per_task"}``, ``per_task`` holding
+    ``(task, verdict, mean, lo, hi, n_seeds)`` per task."""
     obs = [{**o, "curve_mean": _curve_mean(o)} for o in rec["observations"]
            if o["row"] != "expert"]
     obs += _lowest_other(obs)
@@ -285,7 +287,7 @@ def verdicts(rec: dict) -> list[dict]:
         for n, group in groups:
             v = _claims.judge_claim(claim, group)
             out.append({"claim": claim.name, "n_demos": n, "verdict": v.verdict,
-                        "evidence": v.evidence, "rule": claim.rule})
+                        "evidence": v.evidence, "rule": claim.rule, "per_task": v.per_task})
     out += [_non_inferior([o for o in obs if o["n_demos"] == n], n) for n in counts]
     return out
 
