@@ -173,3 +173,14 @@ def test_the_lesson_grid_has_seeds_enough_for_a_verdict():
     from dc_lesson.experiments import claims
     for name in ("lesson", "paper"):
         assert budget.get(name).table3_seeds >= claims.MIN_SEEDS, name
+
+
+def test_dc_against_its_start_is_judged_for_non_inferiority_too():
+    # _single: bc = 0.4 (+0.01 s), dc = gail + shift = 0.6 + shift: dc - bc = 0.2 + shift
+    keeps = t3.verdicts(_single(-0.25, 0.01, 0.0))       # dc - bc = -0.05: within the margin
+    assert _verdict(keeps, t3.COMPARABLE_BC) == {"reproduced (all 2 tasks)"}
+    assert _verdict(keeps, t3.DC_BEATS_BC.name) == {"contradicted (all 2 tasks)"}
+    loses = t3.verdicts(_single(-0.5, 0.01, 0.0))        # dc - bc = -0.3: beyond it
+    assert _verdict(loses, t3.COMPARABLE_BC) == {"contradicted (all 2 tasks)"}
+    assert all("dc - bc" in v["evidence"] and "(dc - bc)" in v["rule"]
+               for v in loses if v["claim"] == t3.COMPARABLE_BC)

@@ -79,10 +79,10 @@ def claim_line(rec: dict, claim: str, verdicts: list | None = None) -> str:
 
 def lines(rec: dict) -> list[str]:
     """:func:`claim_line` for every claim of :data:`table_three.CLAIMS` and the
-    non-inferiority claim, in the chapter's order."""
+    non-inferiority claims, in the chapter's order."""
     vs = table_three.verdicts(rec)
     return [claim_line(rec, c, vs) for c in
-            [c.name for c in table_three.CLAIMS] + [table_three.COMPARABLE]]
+            [c.name for c in table_three.CLAIMS] + list(table_three.NON_INFERIOR)]
 
 
 def _paired(rec: dict, task: str, n: int, a: str, b: str):
