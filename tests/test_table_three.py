@@ -184,3 +184,22 @@ def test_dc_against_its_start_is_judged_for_non_inferiority_too():
     assert _verdict(loses, t3.COMPARABLE_BC) == {"contradicted (all 2 tasks)"}
     assert all("dc - bc" in v["evidence"] and "(dc - bc)" in v["rule"]
                for v in loses if v["claim"] == t3.COMPARABLE_BC)
+
+
+def test_stability_compares_the_spread_of_the_second_half_of_each_curve():
+    def rec(dc_wobble, gail_wobble, dc_early=0.5, n_seeds=6):
+        out = []
+        for s in range(n_seeds):
+            for row, wob, early in (("dc", dc_wobble, dc_early), ("gail", gail_wobble, 0.5)):
+                # four checkpoints; only the last two (the second half) count
+                vals = [early, 0.5, 0.6 + wob * (1 + 0.1 * s), 0.6 - wob]
+                out.append({"task": "hopper", "n_demos": 4, "row": row, "seed": s,
+                            "scaled_return": 0.6, "curve": [
+                                {"steps": 10 * (i + 1), "scaled_return": v}
+                                for i, v in enumerate(vals)]})
+        return {"observations": out}
+    assert _verdict(t3.verdicts(rec(0.01, 0.2)), t3.DC_STABLE.name) == {"reproduced"}
+    assert _verdict(t3.verdicts(rec(0.2, 0.01)), t3.DC_STABLE.name) == {"contradicted"}
+    # a jump in the first half is learning, not instability: equal late spreads decide nothing
+    assert _verdict(t3.verdicts(rec(0.05, 0.05, dc_early=-0.9)), t3.DC_STABLE.name) == \
+        {"inconclusive"}

@@ -23,7 +23,7 @@ from __future__ import annotations
 import numpy as np
 
 from dc_lesson.evaluation import stats
-from dc_lesson.experiments import claims as _claims
+from dc_lesson.experiments import ablations as _ablations, claims as _claims
 from dc_lesson.experiments.report import fmt
 from dc_lesson.storage import read_result
 
@@ -199,8 +199,14 @@ DC_FASTER = _claims.Claim(
     "dc", "gail", +1, "the paper: 'DC has more stable training curves ... with higher "
     "convergence speed'; we judge the speed half: the mean of a run's checkpoint evaluations "
     "(the area under its Figure 11 curve, mean action) is high only if the run gets good "
-    "early and stays good; stability is not judged")
-CLAIMS = (DC_BEATS_BC, DC_BEATS_DRIL_FEW, GPRIL_LOWEST, BC_IMPROVES, DC_FASTER)
+    "early and stays good; stability is DC_STABLE")
+DC_STABLE = _claims.Claim(
+    "DC's training curve is more stable than GAIL's", "Sec. V, Fig. 11", "curve_spread",
+    "dc", "gail", -1, "the paper: 'DC has more stable training curves (with less mean return "
+    "perturbation)'; per seed, the standard deviation of the checkpoint evaluations (mean "
+    "action) over the second half of the interactions, the hopper ablation's measure "
+    "(ablations.STABLE) on Figure 11's curves")
+CLAIMS = (DC_BEATS_BC, DC_BEATS_DRIL_FEW, GPRIL_LOWEST, BC_IMPROVES, DC_FASTER, DC_STABLE)
 
 # "DC has comparable performances with GAIL" (the paper: comparable or better) is judged as
 # non-inferiority: reproduced if the paired 95% interval of dc - gail lies above -MARGIN (DC
@@ -271,13 +277,17 @@ def _curve_mean(o) -> float | None:
     return float(np.mean([p["scaled_return"] for p in c])) if c else None
 
 
+def _curve_spread(o) -> float | None:
+    return _ablations.late_spread({"eval_curve": o.get("curve")})
+
+
 def verdicts(rec: dict) -> list[dict]:
     """Each claim's verdict per demonstration count (DRIL's and the curves' at the fewest
     only, BC's growth once, fewest against most), over the tasks that have run:
     ``{"claim", "n_demos", "verdict", "evidence", "rule", "per_task"}``, ``per_task`` holding
     ``(task, verdict, mean, lo, hi, n_seeds)`` per task."""
-    obs = [{**o, "curve_mean": _curve_mean(o)} for o in rec["observations"]
-           if o["row"] != "expert"]
+    obs = [{**o, "curve_mean": _curve_mean(o), "curve_spread": _curve_spread(o)}
+           for o in rec["observations"] if o["row"] != "expert"]
     obs += _lowest_other(obs)
     counts = sorted({o["n_demos"] for o in obs})
     out = []
@@ -292,7 +302,7 @@ def verdicts(rec: dict) -> list[dict]:
                                                                           counts[-1])]
             groups = [(f"{counts[0]} -> {counts[-1]}", rows)]
         else:
-            few = claim in (DC_BEATS_DRIL_FEW, DC_FASTER)
+            few = claim in (DC_BEATS_DRIL_FEW, DC_FASTER, DC_STABLE)
             groups = [(n, [o for o in obs if o["n_demos"] == n])
                       for n in (counts[:1] if few else counts)]
         for n, group in groups:
@@ -317,5 +327,5 @@ def figure8(rec1: dict, actions: str = "mean") -> dict:
             for t, rows in out.items()}
 
 
-__all__ = ["BC_IMPROVES", "CLAIMS", "COMPARABLE", "COMPARABLE_BC", "COMPARABLE_RULE", "NON_INFERIOR", "non_inferior_rule", "DC_BEATS_BC", "DC_FASTER", "MARGIN", "DC_BEATS_DRIL_FEW", "GPRIL_LOWEST", "LEARNERS", "PAPER_COLUMNS", "PAPER_TABLE_III", "RESULT", "figure11", "figure8",
+__all__ = ["BC_IMPROVES", "CLAIMS", "COMPARABLE", "COMPARABLE_BC", "COMPARABLE_RULE", "NON_INFERIOR", "non_inferior_rule", "DC_BEATS_BC", "DC_FASTER", "DC_STABLE", "MARGIN", "DC_BEATS_DRIL_FEW", "GPRIL_LOWEST", "LEARNERS", "PAPER_COLUMNS", "PAPER_TABLE_III", "RESULT", "figure11", "figure8",
            "figure9", "kendall_tau", "load", "paper_rows", "rank_agreement", "table", "UNCERTAIN", "verdicts"]
