@@ -148,8 +148,18 @@ if t3 is None:
 else:
     frame = pd.DataFrame(table_three.table(t3))
     if len(frame):
-        display(frame.pivot_table(index=["task", "n_demos"], columns="row",
-                                  values="scaled_return", aggfunc="first"))
+        # the paper's layout: its column order, then the expert scored like a learner (the
+        # floor; the planner tasks have none, their floor is the manifest's spread above)
+        wide = frame.pivot_table(index=["task", "n_demos"], columns="row",
+                                 values="scaled_return", aggfunc="first")
+        wide = wide[[c for c in table_three.PAPER_COLUMNS if c in wide.columns]]
+        floor = {r["task"]: r["scaled_return"] for r in table_three.table({"table": t3["expert"]})}
+        wide["expert (floor)"] = [floor.get(t, "") for t, _ in wide.index]
+        wide = wide.reindex([(t, n) for t in study.TASKS
+                             for n in _budget.get(t3["budget"]).bc_demo_counts
+                             if (t, n) in wide.index])
+        with pd.option_context("display.max_columns", 20, "display.width", 200):
+            display(wide)
     else:
         print("table3 is aggregated but no learner cell has run yet")
 reduced = (t3 or {}).get("reduced") or study.reduced_rows(BUDGET)
