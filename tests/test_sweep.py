@@ -205,3 +205,34 @@ def test_a_sweep_whose_deadline_has_passed_starts_nothing_and_resumes_later(unin
     rest = sweep.run("bc_demos", TINY, only=ONLY, root=root_b, progress=False, hours=1.0)
     assert (rest.ran, rest.deferred) == (len(gone), 0)
     assert _results(root_b) == _results(root_a)
+
+
+def test_the_grid_repriced_by_a_window_uses_the_window_s_cells_and_falls_back(monkeypatch):
+    """`--priced-since`: every cell of the grid, done or not, priced by the median of its row's
+    cells finished in the window; a row with none there by every cell's median."""
+    from dc_lesson.experiments.studies import table3
+    lesson = budget.get("lesson")
+    grid = [c for c in table3.cells_at(lesson) if c.task == "reacher1" and c.n_demos == 4
+            and c.learner in ("bc", "dc")]
+    study = cells.Study("t", "t", cells=lambda b: grid, run_cell=None, aggregate=None,
+                        result_file="t.json")
+
+    def record(row, seconds, when):
+        return {"cell": {"learner": row, "variant": "", "task": "reacher1"}, "config": {},
+                "provenance": {"budget": "lesson", "wall_seconds": seconds, "time": when}}
+    old, new = "2026-12-01T10:00:00+00:00", "2026-12-03T12:00:00+00:00"
+    records = [record("dc", 300.0, old), record("dc", 100.0, new), record("dc", 120.0, new),
+               record("bc", 10.0, old)]          # bc has no cell in the window
+    monkeypatch.setattr(sweep, "_finished", lambda root=None: iter(records))
+    monkeypatch.setattr(sweep, "measured_rates", lambda root=None: {})
+    r = sweep.reprice(study, lesson, "2026-12-03T11:55", workers=2)
+    n_dc, n_bc = (sum(c.learner == x for c in grid) for x in ("dc", "bc"))
+    assert n_dc and n_bc and r["since"] == "2026-12-03T11:55:00+00:00"
+    assert r["cpu_seconds"] == pytest.approx(110.0 * n_dc + 10.0 * n_bc)   # window median
+    assert r["wall_seconds"] == pytest.approx(r["cpu_seconds"] / 2)
+    refs = len(study.grid(lesson)) - len(grid)       # the reference the cells read: never run
+    assert refs == 1 and r["cells"] == len(grid) + refs
+    assert (r["window_cells"], r["priced_from_window"], r["unknown"]) == (2, n_dc, refs)
+    assert "priced by the 2 cells finished since" in sweep.format_reprice(r)
+    with pytest.raises(sweep.SweepError, match="not an ISO time"):
+        sweep.reprice(study, lesson, "yesterday")

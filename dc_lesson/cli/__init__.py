@@ -118,6 +118,10 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--hours", type=positive_float, default=None,
                    help="start only the cells whose estimated cost ends within this many "
                         "hours; running cells finish (a session's length)")
+    s.add_argument("--priced-since", default=None, metavar="ISO_TIME",
+                   help="with --dry-run: also price the whole grid by the cells finished "
+                        "since this time (UTC), e.g. a session that gave the machine to the "
+                        "sweep alone")
     s.set_defaults(func=cmd_sweep)
     s = sub.add_parser("aggregate", help="a finished study's cells -> data/results/STUDY.json")
     s.add_argument("study")

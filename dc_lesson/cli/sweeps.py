@@ -22,7 +22,12 @@ def cmd_sweep(args) -> int:
             workers = args.cpus or os.cpu_count() or 1
             print(sweep.format_plan(study, b, sweep.plan(study, b, args.only, workers=workers),
                                     workers))
+            if args.priced_since:
+                print(sweep.format_reprice(sweep.reprice(study, b, args.priced_since,
+                                                         args.only, workers=workers)))
             return 0
+        if args.priced_since:
+            raise sweep.SweepError("--priced-since prices a --dry-run; add --dry-run")
         report = sweep.run(args.study, b, only=args.only, address=args.address, cpus=args.cpus,
                            command=command_line(), hours=args.hours)
     except (studies.UnknownStudyError, sweep.SweepError, cells.CellError,

@@ -93,10 +93,13 @@ def _finished(root=None):
             continue
 
 
-def measured_costs(root=None) -> dict[tuple, list[float]]:
-    """Wall seconds of every finished cell on disk, by (learner row, task, budget)."""
+def measured_costs(root=None, since: str | None = None) -> dict[tuple, list[float]]:
+    """Wall seconds of every finished cell on disk, by (learner row, task, budget); with
+    ``since`` (an ISO time, UTC), of the cells finished at or after it only."""
     out: dict[tuple, list[float]] = {}
     for r in _finished(root):
+        if since is not None and r["provenance"]["time"] < since:
+            continue
         c = r["cell"]
         row = c["learner"] + (f"-{c['variant']}" if c["variant"] else "")
         out.setdefault((row, c["task"], r["provenance"]["budget"]), []).append(
@@ -163,6 +166,46 @@ def plan(study: _cells.Study, b: _budget.Budget, only=(), root=None, workers: in
     return {"grid": grid, "todo": todo, "estimates": est,
             "cpu_seconds": sum(known), "unknown": len(est) - len(known),
             "wall_seconds": sum(known) / max(1, workers)}
+
+
+def _iso(since: str) -> str:
+    import datetime
+    try:
+        t = datetime.datetime.fromisoformat(since)
+    except ValueError:
+        raise SweepError(f"--priced-since {since!r} is not an ISO time; give e.g. "
+                         f"2026-12-03T11:55 (UTC, as the cell records' provenance 'time')")
+    if t.tzinfo is None:
+        t = t.replace(tzinfo=datetime.timezone.utc)
+    return t.astimezone(datetime.timezone.utc).isoformat(timespec="seconds")
+
+
+def reprice(study: _cells.Study, b: _budget.Budget, since: str, only=(), root=None,
+            workers: int = 2) -> dict:
+    """The whole grid (done cells too) priced by the cells finished since ``since``: per cell
+    the median wall time of its (row, task) among those, else of all cells (:func:`estimate`).
+    What the grid costs on the machine, and under the load, of that window (a session with
+    the machine given to the sweep alone measures an idle machine; the done cells' own wall
+    times mix every load they ran under)."""
+    since = _iso(since)
+    grid = select(study.grid(b), only)
+    window, every = measured_costs(root, since), measured_costs(root)
+    rates = measured_rates(root)
+    priced = [(estimate(c, window, b.name), estimate(c, every, b.name, rates)) for c in grid]
+    known = [w if w is not None else e for w, e in priced if (w or e) is not None]
+    n_window = sum(len(v) for (_, _, bn), v in window.items() if bn == b.name)
+    return {"since": since, "cells": len(grid), "window_cells": n_window,
+            "priced_from_window": sum(w is not None for w, _ in priced),
+            "unknown": len(grid) - len(known), "cpu_seconds": sum(known),
+            "wall_seconds": sum(known) / max(1, workers), "workers": workers}
+
+
+def format_reprice(r: dict) -> str:
+    return (f"the whole grid, {r['cells']} cells, priced by the {r['window_cells']} cells "
+            f"finished since {r['since']} ({r['priced_from_window']} cells priced from those, "
+            f"the rest from every finished cell, {r['unknown']} unknown): "
+            f"{_fmt_s(r['cpu_seconds'])} of CPU, {_fmt_s(r['wall_seconds'])} of wall time "
+            f"on {r['workers']} worker(s)")
 
 
 def format_plan(study: _cells.Study, b: _budget.Budget, p: dict, workers: int) -> str:
