@@ -25,7 +25,7 @@ import numpy as np
 
 from dc_lesson.evaluation import stats
 from dc_lesson.experiments import table_three
-from dc_lesson.experiments.verdict_rules import MIN_SEEDS, VERDICTS
+from dc_lesson.experiments.verdict_rules import MIN_SEEDS, VERDICTS, paired_values
 
 CEILING, RANDOM = "at the ceiling", "at the random level"
 
@@ -86,16 +86,9 @@ def lines(rec: dict) -> list[str]:
 
 
 def _paired(rec: dict, task: str, n: int, a: str, b: str):
-    va = {o["seed"]: o["scaled_return"] for o in rec["observations"]
-          if (o["task"], o["n_demos"], o["row"]) == (task, n, a)
-          and o.get("scaled_return") is not None}
-    vb = {o["seed"]: o["scaled_return"] for o in rec["observations"]
-          if (o["task"], o["n_demos"], o["row"]) == (task, n, b)
-          and o.get("scaled_return") is not None}
-    seeds = sorted(set(va) & set(vb))
-    if len(seeds) < MIN_SEEDS:
-        return None
-    return stats.paired_diff([va[s] for s in seeds], [vb[s] for s in seeds])
+    obs = [o for o in rec["observations"] if o["n_demos"] == n]
+    seeds, va, vb = paired_values(obs, task, a, b, "scaled_return")
+    return stats.paired_diff(va, vb) if len(seeds) >= MIN_SEEDS else None
 
 
 def tally(rec: dict, a: str = "dc", b: str = "bc") -> dict:
