@@ -23,9 +23,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from dc_lesson.evaluation import stats
 from dc_lesson.experiments import table_three
-from dc_lesson.experiments.verdict_rules import MIN_SEEDS, VERDICTS, paired_values
+from dc_lesson.experiments.verdict_rules import MIN_SEEDS, VERDICTS
 
 CEILING, RANDOM = "at the ceiling", "at the random level"
 
@@ -85,26 +84,27 @@ def lines(rec: dict) -> list[str]:
             [c.name for c in table_three.CLAIMS] + list(table_three.NON_INFERIOR)]
 
 
-def _paired(rec: dict, task: str, n: int, a: str, b: str):
-    obs = [o for o in rec["observations"] if o["n_demos"] == n]
-    seeds, va, vb = paired_values(obs, task, a, b, "scaled_return")
-    return stats.paired_diff(va, vb) if len(seeds) >= MIN_SEEDS else None
+# the claim whose paired interval of dc - b per (task, count) a tally reads
+_INTERVAL_OF = {"bc": table_three.DC_BEATS_BC.name, "gail": table_three.COMPARABLE}
 
 
-def tally(rec: dict, a: str = "dc", b: str = "bc") -> dict:
+def tally(rec: dict, b: str = "bc", verdicts: list | None = None) -> dict:
     """Per (task, count) with at least ``MIN_SEEDS`` paired seeds: ``above`` / ``below`` /
-    ``same`` (the paired 95% interval of a - b above zero, below zero, or across it) and
-    whether ``a`` stays within the margin (``kept``: the interval lies above -MARGIN),
-    keyed by the start's level."""
+    ``same`` (the paired 95% interval of dc - b, read from the verdict that computed it, above
+    zero, below zero, or across it) and whether DC stays within the margin (``kept``: the
+    interval lies above -MARGIN), with the start's level."""
     levels = start_levels(rec)
     out: dict = {}
-    for (task, n), level in levels.items():
-        ci = _paired(rec, task, n, a, b)
-        if ci is None or not (np.isfinite(ci.lo) and np.isfinite(ci.hi)):
+    for v in (verdicts if verdicts is not None else table_three.verdicts(rec)):
+        if v["claim"] != _INTERVAL_OF[b]:
             continue
-        side = {1: "above", -1: "below", 0: "same"}[ci.excludes_zero()]
-        out[(task, n)] = {"level": level, "side": side, "kept": ci.lo > -table_three.MARGIN,
-                          "mean": ci.mean, "lo": ci.lo, "hi": ci.hi}
+        for task, _word, mean, lo, hi, n_seeds in v["per_task"]:
+            if n_seeds < MIN_SEEDS or not (np.isfinite(lo) and np.isfinite(hi)):
+                continue
+            side = "above" if lo > 0 else ("below" if hi < 0 else "same")
+            out[(task, v["n_demos"])] = {"level": levels.get((task, v["n_demos"])),
+                                         "side": side, "kept": lo > -table_three.MARGIN,
+                                         "mean": mean, "lo": lo, "hi": hi}
     return out
 
 
@@ -123,7 +123,8 @@ def conclusion(rec: dict) -> str:
     * at the random level: that no learner has anything to start from;
     * with no pair of enough seeds: no answer yet.
     """
-    t_bc, t_gail = tally(rec, "dc", "bc"), tally(rec, "dc", "gail")
+    vs = table_three.verdicts(rec)
+    t_bc, t_gail = tally(rec, "bc", vs), tally(rec, "gail", vs)
     if not t_bc:
         return (f"No (task, demonstration count) pair has {MIN_SEEDS} paired seeds of DC and "
                 f"its BC start yet, so the benchmark cannot answer yet.")
