@@ -58,9 +58,9 @@ def test_the_planner_predicts_the_environments_data_over_its_whole_horizon(task)
     controls = rng.uniform(p.low, p.high, (1, H, venv.spec.act_dim))
     fields = p.predicted_fields(p._states(1), controls)
     predicted = p.predict(p._states(1), controls)[0]
-    d = venv.envs[0].physics.data
     for j in range(H):
         _, reward, _, _ = venv.step(controls[:, j])
+        d = venv.data(0)
         for k, v in fields.items():
             np.testing.assert_allclose(v[j], getattr(d, k), rtol=1e-9, atol=1e-9, err_msg=k)
         assert abs(predicted[j] - reward[0]) < 1e-9

@@ -66,14 +66,13 @@ class Batch:
             setattr(self, f, np.stack([getattr(d, f) for d in datas]))
 
     @classmethod
-    def from_views(cls, views: dict, n: int, ids) -> "Batch":
-        """The same batch from arrays read off each MjData once beforehand (``views``: field
-        -> one array per environment, each a view into its data's memory, so always current):
-        a VecEnv's steps skip the attribute lookups of MjData, and stack the same numbers."""
+    def of_arrays(cls, arrays: dict, n: int, ids) -> "Batch":
+        """The batch of the first ``n`` rows of ``(n_envs, ...)`` arrays already stacked (a
+        ``mujoco.batch.Batch``'s bound fields): views, nothing copied."""
         b = cls.__new__(cls)
         b.ids = ids
-        for f, arrays in views.items():
-            setattr(b, f, np.array(arrays[:n]))   # np.stack, at a third of the cost
+        for f, arr in arrays.items():
+            setattr(b, f, arr[:n])
         return b
 
 
@@ -126,8 +125,9 @@ class PortTask(suite_base.Task):
         """:meth:`outputs` of a gathered batch of ``n`` environments."""
         obs = np.concatenate([v.reshape(n, -1)
                               for v in self.batch_observation(b).values()], axis=1)
-        return (obs.astype(np.float32), np.asarray(self.batch_reward(b), dtype=np.float64),
-                np.asarray(self.batch_mode_feature(b), dtype=np.float32))
+        # fresh arrays: a batch may view live simulation memory that the next step rewrites
+        return (obs.astype(np.float32), np.array(self.batch_reward(b), dtype=np.float64),
+                np.array(self.batch_mode_feature(b), dtype=np.float32))
 
     # dm_control's per-environment interface, as a batch of one.
     def get_observation(self, physics):
@@ -170,15 +170,11 @@ def sensor_slice(model, name: str) -> slice:
     return slice(adr, adr + model.sensor_dim[i])
 
 
-def is_rk4(model) -> bool:
-    return model.opt.integrator == mujoco.mjtIntegrator.mjINT_RK4
-
-
 def step_physics(model, data, n_sub_steps: int) -> None:
     """``n_sub_steps`` physics steps exactly as dm_control's ``Physics.step`` takes them
     (legacy stepping: finish the pending ``mj_step1``, step, then ``mj_step1`` so that
     positions, velocities and sensors are up to date for the observation)."""
-    if not is_rk4(model):
+    if model.opt.integrator != mujoco.mjtIntegrator.mjINT_RK4:
         mujoco.mj_step2(model, data)
         if n_sub_steps > 1:
             mujoco.mj_step(model, data, n_sub_steps - 1)
@@ -311,102 +307,6 @@ class TaskEnv:
     @property
     def default_camera(self):
         return getattr(self.task, "camera", 0)
-
-
-class VecEnv:
-    """``n_envs`` copies of a task stepped in lockstep, for rollouts and RL.
-
-    Each copy has its own MuJoCo data; one ``step`` sets every copy's control, takes its
-    physics steps (exactly as :class:`TaskEnv`), then computes all observations, rewards and
-    mode features in one batched NumPy pass.  All copies share the fixed horizon, so they start
-    and end their episodes together.  ``reset(seeds)`` may start fewer episodes than there are
-    copies; the rest sit idle.
-    """
-
-    def __init__(self, envs: list[TaskEnv]):
-        if not envs:
-            raise ValueError("a VecEnv needs at least one environment")
-        self.envs = envs
-        self.spec = envs[0].spec
-        self.task = envs[0].task
-        self.action_low, self.action_high = envs[0].action_low, envs[0].action_high
-        self._models = [e.physics.model.ptr for e in envs]
-        self._datas = [e.physics.data.ptr for e in envs]
-        # Arrays read off each MjData once: views into its memory, so they stay current, and a
-        # step skips the MjData attribute lookups (a third of a one-substep task's step).
-        self._ctrls = [d.ctrl for d in self._datas]
-        self._views = {f: [getattr(d, f) for d in self._datas] for f in self.task.fields}
-        self._rk4 = is_rk4(self._models[0])
-        # The fast path sets the controls itself; a task with its own step hooks gets them called.
-        cls = type(self.task)
-        self._hooks = (cls.before_step is not suite_base.Task.before_step
-                       or cls.after_step is not suite_base.Task.after_step)
-        self.n_active = 0
-        self.t = 0
-
-    @property
-    def n_envs(self) -> int:
-        return len(self.envs)
-
-    def reset(self, seeds) -> tuple[np.ndarray, np.ndarray]:
-        """Starts ``len(seeds)`` episodes: returns (observations, mode features)."""
-        seeds = np.asarray(seeds).reshape(-1)
-        if not 1 <= len(seeds) <= self.n_envs:
-            raise ValueError(f"reset takes 1 to {self.n_envs} seeds, got {len(seeds)}")
-        for env, seed in zip(self.envs, seeds):
-            env.reset(seed=int(seed))
-        self.n_active = len(seeds)
-        self.t = 0
-        obs, _, feat = self._outputs()
-        return obs, feat
-
-    def _outputs(self):
-        b = Batch.from_views(self._views, self.n_active, self.task.ids(self._models[0]))
-        return self.task.outputs_of(b, self.n_active)
-
-    def get_states(self) -> np.ndarray:
-        return np.stack([e.get_state() for e in self.envs[:self.n_active]])
-
-    def check_actions(self, actions) -> np.ndarray:
-        a = np.asarray(actions, dtype=np.float64)
-        shape = (self.n_active, self.spec.act_dim)
-        if a.shape != shape:
-            raise ActionError(f"task {self.spec.name!r} with {self.n_active} running episodes "
-                              f"takes actions of shape {shape}, got shape {a.shape}")
-        if not np.isfinite(a).all():
-            raise ActionError(f"task {self.spec.name!r} got non-finite actions")
-        # np.clip's value, without its Python wrapper (called twice per step of a rollout)
-        return np.minimum(np.maximum(a, self.action_low), self.action_high)
-
-    def step(self, actions) -> tuple[np.ndarray, np.ndarray, np.ndarray, bool]:
-        """One control step of every running episode: (observations, rewards, mode features,
-        done); ``done`` is True at the horizon, after which ``reset`` is needed."""
-        if self.n_active == 0 or self.t >= self.spec.horizon:
-            raise RuntimeError("call reset() before step(): the episodes are over or not started")
-        a = self.check_actions(actions)
-        n = self.spec.n_sub_steps
-        if self._hooks:
-            for env, ai in zip(self.envs[:self.n_active], a):
-                env.task.before_step(ai, env.physics)
-                step_physics(env.physics.model.ptr, env.physics.data.ptr, n)
-                env.task.after_step(env.physics)
-        elif self._rk4:
-            for m, d, c, ai in zip(self._models, self._datas[:self.n_active], self._ctrls, a):
-                c[:] = ai               # what Task.before_step does (set_control)
-                mujoco.mj_step(m, d, n)  # step_physics, inlined: the same calls in order
-                mujoco.mj_step1(m, d)
-        else:
-            for m, d, c, ai in zip(self._models, self._datas[:self.n_active], self._ctrls, a):
-                c[:] = ai
-                mujoco.mj_step2(m, d)
-                if n > 1:
-                    mujoco.mj_step(m, d, n - 1)
-                mujoco.mj_step1(m, d)
-        obs, rew, feat = self._outputs()
-        if not np.all(np.isfinite(obs)):
-            raise PhysicsDiverged(f"the {self.spec.name} simulation diverged at step {self.t}")
-        self.t += 1
-        return obs, rew, feat, self.t >= self.spec.horizon
 
 
 Factory = Callable[[np.random.RandomState], tuple]
