@@ -148,7 +148,7 @@ def test_comparability_is_non_inferiority_with_a_declared_margin():
     assert _verdict(t3.verdicts(_single(0.0, 0.2, 0.2)), t3.COMPARABLE) == \
         {"inconclusive (all 2 tasks)"}
     assert _verdict(t3.verdicts(_single(0.0, 0.01, 0.2, n_seeds=4)), t3.COMPARABLE) == \
-        {"inconclusive (all 2 tasks)"}
+        {"inconclusive; not judged on ant, hopper (fewer than 5 paired seeds)"}
     # one seed has no interval: the evidence says so, never "[nan, nan]"
     one = [v for v in t3.verdicts(_single(0.0, 0.01, 0.2, n_seeds=1)) if v["claim"] ==
            t3.COMPARABLE]

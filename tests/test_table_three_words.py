@@ -73,3 +73,26 @@ def test_a_claim_line_groups_verdicts_flags_levels_and_sets_few_seeds_apart():
     assert line.endswith("too few paired seeds (fewer than 5) on cartpole (4).")
     assert len(w.lines(rec)) == len(t3.CLAIMS) + len(t3.NON_INFERIOR)
     assert w.claim_line({"table": [], "observations": []}, "x").endswith("not run yet.")
+
+
+def test_bc_growth_is_flagged_where_both_counts_sit_at_one_level():
+    starts = {("hopper", 4): 0.999, ("hopper", 25): 1.0, ("walker", 4): 0.0,
+              ("walker", 25): 0.02, ("reacher1", 4): 0.5, ("reacher1", 25): 0.95}
+    rec = _rec(starts, {})
+    # BC's own seeds: a small steady rise at every task
+    for o in rec["observations"]:
+        if o["row"] == "bc":
+            o["scaled_return"] = starts[(o["task"], o["n_demos"])] + 0.001 * o["seed"]
+    line = w.claim_line(rec, t3.BC_IMPROVES.name)
+    assert "(the start at the ceiling: hopper (4 -> 25); at the random level: walker " \
+           "(4 -> 25))" in line
+    # reacher1 rose from room to room: grouped with the others, never flagged
+    assert "reacher1 (4 -> 25)" in line and "reacher1" not in line.split("(the start")[1]
+
+
+def test_a_claims_verdict_counts_only_the_tasks_with_enough_seeds():
+    per_task = [("reacher1", "reproduced", 0.1, 0.05, 0.2, 5),
+                ("walker", "inconclusive", 0.0, -1, 1, 1)]
+    assert t3.judged_count(per_task) == ("reproduced; not judged on walker (fewer than 5 "
+                                         "paired seeds)")
+    assert t3.judged_count(per_task[1:]).startswith("inconclusive; not judged on walker")

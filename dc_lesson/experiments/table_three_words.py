@@ -49,6 +49,17 @@ def _span(pairs: list) -> str:
     return ", ".join(f"{t} ({', '.join(ns)})" for t, ns in by.items())
 
 
+def _level(levels: dict, key) -> str | None:
+    """The start's level at (task, count); for a comparison of two counts ("4 -> 25", BC's
+    growth), the level both ends share, else none: growth from the ceiling to the ceiling, or
+    within the random level, is no room used."""
+    task, n = key
+    if isinstance(n, str) and "->" in n:
+        ends = {levels.get((task, int(e))) for e in n.split("->")}
+        return ends.pop() if len(ends) == 1 else None
+    return levels.get(key)
+
+
 def claim_line(rec: dict, claim: str, verdicts: list | None = None) -> str:
     """One Markdown line: the claim's verdicts over its (task, count) pairs, grouped by
     verdict, the pairs with too few seeds apart and the start's level beside each group."""
@@ -66,10 +77,10 @@ def claim_line(rec: dict, claim: str, verdicts: list | None = None) -> str:
         pairs = groups[word]
         if not pairs:
             continue
-        flat = [p for p in pairs if isinstance(p[1], int) and levels.get(p)]
-        note = "; ".join(f"{lvl}: {_span([p for p in flat if levels[p] == lvl])}"
+        flat = [p for p in pairs if _level(levels, p)]
+        note = "; ".join(f"{lvl}: {_span([p for p in flat if _level(levels, p) == lvl])}"
                          for lvl in (CEILING, RANDOM)
-                         if any(levels[p] == lvl for p in flat))
+                         if any(_level(levels, p) == lvl for p in flat))
         parts.append(f"{word} on {_span(pairs)}" + (f" (the start {note})" if note else ""))
     if few:
         parts.append(f"too few paired seeds (fewer than {MIN_SEEDS}) on {_span(few)}")
