@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from dc_lesson.evaluation import stats
-from dc_lesson.experiments import claims
+from dc_lesson.experiments import claims, verdict_rules
 
 
 def _obs(delta, *, measure="emd", seeds=10, tasks=("t1", "t2"), noise=0.01, a="dc", b="bc",
@@ -117,3 +117,16 @@ def test_arriving_nowhere_is_not_collapsing_onto_a_mode():
            for s, m in enumerate((nowhere, one))]
     (summary,) = _imitation.mode_summary(obs, {"t": {"red": 0.5, "blue": 0.5, "none": 0.0}}, 50)
     assert summary["largest_share"] == [0.0, 0.9] and summary["collapsed_share"] == 0.5
+
+
+@pytest.mark.parametrize("delta, want", [(-0.05, "reproduced"), (-0.5, "contradicted"),
+                                         (0.3, "reproduced")])
+def test_a_non_inferiority_claim_is_judged_against_its_margin_not_zero(delta, want):
+    # "a is comparable to b": a small loss is within the margin, a large one is not, and being
+    # better is "comparable or better"; the ordinary rule would call the first contradicted
+    c = claims.Claim("a is comparable to b", "test", "scaled_return", "dc", "bc", +1, "test",
+                     margin=claims.MARGIN)
+    v = claims.judge_claim(c, _obs(delta, measure="scaled_return", noise=0.01))
+    assert [p[1] for p in v.per_task] == [want, want]
+    assert f"above -{claims.MARGIN}" in c.rule
+    assert verdict_rules.non_inferior(stats.Interval(-0.1, -0.2, 0.0, 10, "x"), 0.1) == "inconclusive"

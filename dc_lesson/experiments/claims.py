@@ -33,8 +33,8 @@ import numpy as np
 from dc_lesson.evaluation import stats
 from dc_lesson.experiments import ablations
 # The rule itself, one module down so the ablations judge by it too:
-from dc_lesson.experiments.verdict_rules import (MIN_SEEDS, VERDICTS, Claim, Verdict, count,
-                                                 judge, judge_claim, paired_values)
+from dc_lesson.experiments.verdict_rules import (MARGIN, MIN_SEEDS, VERDICTS, Claim, Verdict,
+                                                 count, judge, judge_claim, paired_values)
 from dc_lesson.storage import read_result
 
 MEASURES = ("emd", "kl", "rkl")

@@ -234,46 +234,28 @@ CLAIMS = (DC_BEATS_BC, DC_BEATS_DRIL_FEW, GPRIL_LOWEST, BC_IMPROVES, DC_FASTER, 
 # declaration, fixed before any result.  The paper's summary claim "comparable or better
 # performance than IL baselines" is judged the same way against BC, DC's own start: the one
 # form of "DC adds to BC" that can hold where the start already earns the expert's return.
-MARGIN = 0.1
+MARGIN = _claims.MARGIN
 COMPARABLE = f"DC is at least comparable to GAIL (not worse by {MARGIN} scaled return)"
 COMPARABLE_BC = f"DC is at least comparable to BC (not worse by {MARGIN} scaled return)"
 NON_INFERIOR = {COMPARABLE: "gail", COMPARABLE_BC: "bc"}     # claim: the row DC is held to
 
 
+def _non_inferior_claim(claim: str) -> _claims.Claim:
+    return _claims.Claim(claim, "Sec. V, Table III", "scaled_return", "dc", NON_INFERIOR[claim],
+                         +1, "non-inferiority with the declared margin", margin=MARGIN)
+
+
 def non_inferior_rule(b: str = "gail") -> str:
-    return (f"scaled_return: paired 95% interval of (dc - {b}) per seed; reproduced if it lies "
-            f"above -{MARGIN}, contradicted if wholly below -{MARGIN}, inconclusive otherwise "
-            f"(or with fewer than {_claims.MIN_SEEDS} seeds)")
+    return _non_inferior_claim(next(c for c, row in NON_INFERIOR.items() if row == b)).rule
 
 
 COMPARABLE_RULE = non_inferior_rule("gail")
 
 
 def _non_inferior(obs, n, claim: str = COMPARABLE) -> dict:
-    b = NON_INFERIOR[claim]
-    per_task, parts = [], []
-    for task in dict.fromkeys(o["task"] for o in obs):
-        seeds, va, vb = _claims.paired_values(obs, task, "dc", b, "scaled_return")
-        if not seeds:
-            continue
-        ci = stats.paired_diff(va, vb)
-        if len(seeds) < _claims.MIN_SEEDS or not (np.isfinite(ci.lo) and np.isfinite(ci.hi)):
-            word = "inconclusive"
-        elif ci.lo > -MARGIN:
-            word = "reproduced"
-        elif ci.hi < -MARGIN:
-            word = "contradicted"
-        else:
-            word = "inconclusive"
-        per_task.append((task, word, ci.mean, ci.lo, ci.hi, len(seeds)))
-        band = (f"[{ci.lo:+.3f}, {ci.hi:+.3f}]" if np.isfinite(ci.lo) and np.isfinite(ci.hi)
-                else "(no interval)")
-        few = f" (fewer than {_claims.MIN_SEEDS} seeds)" if len(seeds) < _claims.MIN_SEEDS else ""
-        parts.append(f"{task}: dc - {b} = {ci.mean:+.3f} {band} over {len(seeds)} seeds -> "
-                     f"{word}{few}")
-    return {"claim": claim, "n_demos": n, "verdict": judged_count(per_task),
-            "evidence": "; ".join(parts) or "no paired results", "rule": non_inferior_rule(b),
-            "per_task": tuple(per_task)}
+    v = _claims.judge_claim(_non_inferior_claim(claim), obs)
+    return {"claim": claim, "n_demos": n, "verdict": judged_count(v.per_task),
+            "evidence": v.evidence, "rule": v.rule, "per_task": v.per_task}
 
 
 def _lowest_other(obs) -> list[dict]:
