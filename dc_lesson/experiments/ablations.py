@@ -193,16 +193,19 @@ def verdicts(recs: dict | None = None) -> list[_claims.Verdict]:
 # -- what the chapter draws ---------------------------------------------------------------------
 
 def rows_table(recs: dict, rows=None) -> list[dict]:
-    """Per row: seeds, final scaled return (mean and 95% interval), interactions per run."""
+    """Per row: seeds, final scaled return (mean and 95% interval), interactions per run and
+    (DC's rows) iterations per loop."""
     from dc_lesson.experiments.report import fmt
     out = []
     for rec in recs.values():
-        steps = {}
+        steps, per_loop = {}, {}
         for o in rec["observations"]:
             c = o.get("curve") or {}
             s = c.get("env_steps") or c.get("steps")
             if s:
                 steps.setdefault(o["row"], set()).add(int(s[-1]))
+            if o.get("iterations"):
+                per_loop[o["row"]] = int(o["iterations"])
         for r in rec["table"]:
             if r["task"] != TASK or (rows and r["row"] not in rows) or r["row"] == "expert":
                 continue
@@ -210,7 +213,8 @@ def rows_table(recs: dict, rows=None) -> list[dict]:
                         "scaled return": fmt(r["scaled_return_mean"], r["scaled_return_lo"],
                                              r["scaled_return_hi"], 2),
                         "interactions": (f"{max(steps[r['row']]):,}" if r["row"] in steps
-                                         else "-")})
+                                         else "-"),
+                        "iterations per loop": per_loop.get(r["row"], "-")})
     seen, unique = set(), []
     for r in out:                       # the BC start appears in each study once
         if r["row"] not in seen:
