@@ -25,6 +25,8 @@ what dm_control's reset computed from the same inputs.  While episodes run, the 
 
 from __future__ import annotations
 
+import contextlib
+
 import mujoco
 import mujoco.batch
 import numpy as np
@@ -33,6 +35,19 @@ from dm_control.suite import base as suite_base
 from dc_lesson.tasks.base import ActionError, Batch, PhysicsDiverged, TaskEnv, step_physics
 
 _INTEGRATION = mujoco.mjtState.mjSTATE_INTEGRATION
+_BATCHED = True      # the default of VecEnv(batched=None); per_copy() switches it off
+
+
+@contextlib.contextmanager
+def per_copy():
+    """Within the block, new VecEnvs step copy by copy (the reference path; what a benchmark
+    of the path before issue 14 runs)."""
+    global _BATCHED
+    old, _BATCHED = _BATCHED, False
+    try:
+        yield
+    finally:
+        _BATCHED = old
 
 
 class VecEnv:
@@ -45,7 +60,8 @@ class VecEnv:
 
     def __init__(self, envs: list[TaskEnv], batched: bool | None = None):
         """``batched``: step the copies as one ``mujoco.batch.Batch`` (None: whenever the task
-        has no step hooks; False: each copy on its own Physics, the reference path)."""
+        has no step hooks, outside :func:`per_copy`; False: each copy on its own Physics, the
+        reference path)."""
         if not envs:
             raise ValueError("a VecEnv needs at least one environment")
         self.envs = envs
@@ -59,7 +75,7 @@ class VecEnv:
         if batched and hooks:
             raise ValueError(f"task {self.spec.name!r} has step hooks: it steps copy by copy")
         self._batch = None
-        if not hooks and batched is not False:
+        if not hooks and (_BATCHED if batched is None else batched):
             self._batch = mujoco.batch.Batch(self._model, len(envs), nthread=1, persistent=True)
             self._ctrl = self._batch.bind("ctrl")
             # live (n_envs, ...) arrays: state fields view the rows, the others are refreshed
