@@ -130,3 +130,27 @@ def test_a_non_inferiority_claim_is_judged_against_its_margin_not_zero(delta, wa
     assert [p[1] for p in v.per_task] == [want, want]
     assert f"above -{claims.MARGIN}" in c.rule
     assert verdict_rules.non_inferior(stats.Interval(-0.1, -0.2, 0.0, 10, "x"), 0.1) == "inconclusive"
+
+
+def test_chapter_1s_growth_verdict_reads_the_paired_intervals_by_the_book_rule():
+    def pair(task, lo, hi, n=10):
+        return {"task": task, "a": "bc n=25", "b": "bc n=4", "n_seeds": n,
+                "scaled_return": {"mean": (lo + hi) / 2, "lo": lo, "hi": hi, "n": n,
+                                  "method": "BCa"}}
+    rec = {"paired": [pair("a", 0.1, 0.3), pair("b", -0.3, -0.1), pair("c", -0.1, 0.1),
+                      pair("d", 0.1, 0.3, n=claims.MIN_SEEDS - 1)]}
+    v = claims.bc_growth(rec)
+    assert [p[1] for p in v.per_task] == ["reproduced", "contradicted", "inconclusive",
+                                          "inconclusive"]
+    assert v.verdict.startswith("reproduced on 1 of 4 tasks")
+
+
+def test_the_hidden_coin_collapse_is_gail_coin_against_its_own_start():
+    def o(row, seed, share):
+        return {"task": "reacher2", "row": row, "seed": seed, "n_demos": 18,
+                "mode_shares": {"0": share, "1": 1 - share - 0.0, "none": 0.0}}
+    obs = [o("bc-coin", s, 0.5) for s in range(6)] + [o("gail-coin", s, 0.95 - 0.01 * s)
+                                                       for s in range(6)]
+    assert claims.hidden_coin_collapse({"mean": {"observations": obs[:6]}}) is None
+    v = claims.hidden_coin_collapse({"mean": {"observations": obs}})
+    assert v.verdict == "reproduced" and "gail-coin - bc-coin" in v.evidence

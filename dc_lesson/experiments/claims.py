@@ -184,6 +184,37 @@ def _mode_evidence(obs, task_rows, reference_shares, n_episodes: int) -> str:
     return "; ".join(parts)
 
 
+BC_GROWS = Claim(
+    "BC improves with more demonstrations (chapter 1's study)", "Sec. V, Fig. 9",
+    "scaled_return", "bc n=25", "bc n=4", +1,
+    "the paper: 'the performance of the BC learner policies increase with more expert "
+    "demonstrations'; chapter 1's bc_demos study, 25 against 4 demonstrations, paired by seed")
+
+
+def bc_growth(rec: dict) -> Verdict:
+    """:data:`BC_GROWS` judged on the ``bc_demos`` aggregate's paired differences."""
+    per_task, parts = [], []
+    for p in rec["paired"]:
+        d = p["scaled_return"]
+        ci = stats.Interval(d["mean"], d["lo"], d["hi"], d["n"], d["method"])
+        word = judge(ci, +1) if p["n_seeds"] >= MIN_SEEDS else "inconclusive"
+        per_task.append((p["task"], word, ci.mean, ci.lo, ci.hi, p["n_seeds"]))
+        parts.append(f"{p['task']}: {p['a']} - {p['b']} = {ci.mean:+.3f} [{ci.lo:+.3f}, "
+                     f"{ci.hi:+.3f}] over {p['n_seeds']} seeds -> {word}")
+    return Verdict(BC_GROWS.name, BC_GROWS.source, BC_GROWS.rule, count(per_task),
+                   "; ".join(parts) or "no paired results", BC_GROWS.reason, tuple(per_task))
+
+
+def hidden_coin_collapse(t1: dict) -> Verdict | None:
+    """Chapter 2's :data:`GAIL_COLLAPSES` on the hidden-coin demonstrations (Table I's
+    ``gail-coin`` against its own start ``bc-coin``, mean action); None before they ran."""
+    coin = [o for o in t1["mean"]["observations"] if o["row"] in ("bc-coin", "gail-coin")]
+    if not any(o["row"] == "gail-coin" for o in coin):
+        return None
+    return judge_claim(dataclasses.replace(GAIL_COLLAPSES, a="gail-coin", b="bc-coin"), coin,
+                       measure=largest_share)
+
+
 def verdicts(obs=None, reference_shares=None, source: str = "",
              eval_episodes: int = 50, actions: str = "mean") -> list[Verdict]:
     """Every claim, judged (module docstring); from the stored results by default: the
@@ -231,5 +262,5 @@ def verdicts(obs=None, reference_shares=None, source: str = "",
 CLAIMS = (LOWEST_DIVERGENCE, HIGHER_RETURN, GAIL_COLLAPSES, DC_KEEPS_MODES, LOOPS, LR_ROBUST,
           FASTER, CONVERGES)
 
-__all__ = ["CLAIMS", "COLLAPSE_SHARE", "MIN_SEEDS", "Claim", "VERDICTS", "Verdict", "count", "judge",
+__all__ = ["BC_GROWS", "bc_growth", "hidden_coin_collapse", "CLAIMS", "COLLAPSE_SHARE", "MIN_SEEDS", "Claim", "VERDICTS", "Verdict", "count", "judge",
            "judge_claim", "observations", "paired_values", "table1_observations", "verdicts"]
