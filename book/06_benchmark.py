@@ -120,7 +120,8 @@ display(pd.DataFrame(rows).set_index("budget"))
 # **The expert's floor.** Table III's measure is the scaled return (random 0, expert 1). Its
 # floor is how much the expert's own return varies. Where the expert is cheap (scripted or a
 # PPO network) the grid has an expert row, fresh expert episodes scored like a learner, and
-# every cell is also scored against a fresh expert reference (EMD, KL, RKL). Where it is the
+# every cell is also scored against a fresh expert reference (EMD, KL and reverse KL of the
+# state distributions, chapter 1's measures). Where it is the
 # sampling planner (walker, ant, humanoid: 0.2 to 0.7 s per control step on one core, 3.5
 # to 11 minutes an episode on a slow machine) that would cost most of the grid's night on its
 # own, so those tasks' cells
@@ -134,11 +135,12 @@ display(pd.DataFrame(rows).set_index("budget"))
 # all 25 of its demonstrations stayed at the random level when we tried it (`dc-lesson train
 # bc --task T --demos 25`, seed 0; the numbers are in `study`'s docstring), and the grid's BC
 # cells show it at every count with intervals as they run (Table III below); every RL
-# learner here starts from BC and is pulled towards the same demonstrations. So on walker, ant and humanoid the grid runs BC on every row but the RL
-# learners on the first row only (seed 0, 4 demonstrations), where they were measured at the
-# random level too (`study.rl_cell_kept`; the docstring of `study` gives the numbers). Those
-# rows say so beneath Table III. An imitable expert for them (a network distilled from the
-# planner) is what the full rows would need.
+# learner here starts from BC and is pulled towards the same demonstrations. So on walker,
+# ant and humanoid the grid runs BC on every row but the RL learners on the first row only
+# (seed 0, 4 demonstrations), where they were measured at the random level too
+# (`study.rl_cell_kept`; the grid's numbers below). Those rows say so beneath Table III. An
+# imitable expert for them (a network distilled from the planner) is what the full rows
+# would need.
 
 # %%
 display(pd.DataFrame(study.expert_manifest()).set_index("task").rename(columns={
@@ -179,6 +181,26 @@ if reduced:
     display(Markdown("**Rows run with fewer cells** (never dropped silently):\n\n" + "\n".join(
         f"- {r['task']}: {', '.join(r['learners'])} on {r['kept']} only; {r['why']}"
         for r in reduced)))
+if t3 is not None:
+    planner = [t for t in study.TASKS if not study.fresh_reference(t)]
+    most = max(_budget.get(t3["budget"]).bc_demo_counts)
+    fewest = min(_budget.get(t3["budget"]).bc_demo_counts)
+    said = []
+    for task in planner:
+        bc = [o["scaled_return"] for o in t3["observations"]
+              if (o["task"], o["n_demos"], o["row"]) == (task, most, "bc")]
+        rl = {o["row"]: o["scaled_return"] for o in t3["observations"]
+              if (o["task"], o["n_demos"], o["seed"]) == (task, fewest, 0)
+              and o["row"] not in ("bc", "expert")}
+        if bc:
+            said.append(f"{task}: BC at {most} demonstrations {np.mean(bc):.3f} "
+                        f"({len(bc)} seeds); the RL learners at seed 0, {fewest} demonstrations "
+                        f"from {min(rl.values()):.3f} to {max(rl.values()):.3f}" if rl else
+                        f"{task}: BC at {most} demonstrations {np.mean(bc):.3f} "
+                        f"({len(bc)} seeds)")
+    if said:
+        display(Markdown("The planner tasks in the grid, scaled return: " + "; ".join(said)
+                         + "."))
 
 # %% [markdown]
 # Each entry is the mean over seeds of a seed's scaled return (its policy's mean action over
@@ -190,8 +212,9 @@ if reduced:
 # The paper's Table III, as we read it: its header is lost in our copy and several rows'
 # right-hand columns were shifted aside; the column order is the order in which the paper
 # lists its baselines, DC last (`help(table_three)` gives the reasons and the entries read
-# back from the shifted text, marked `?` below). CartPole's rows and Reacher's at 4 and 11
-# demonstrations are illegible. Returns on Gym's scale, mean ± the standard deviation over
+# back from the shifted text, marked `?` below). CartPole's rows are illegible, and so are
+# Reacher's at 4 and 11 demonstrations but for two columns (NDI and DC, which we leave out
+# rather than half-fill a row). Returns on Gym's scale, mean ± the standard deviation over
 # its 50 evaluation trajectories (a spread of episodes, not an interval over seeds as ours);
 # below them, the same means scaled by the paper's Table II, to read beside ours.
 
@@ -395,7 +418,7 @@ if t1 is not None:
 #
 # The paper's ablations are on Hopper with 11 demonstrations; ours are too, on the Gym
 # hopper port whose expert hops for the whole episode (chapter 00). Three studies of cells,
-# every run from its seed's BC warm start, five seeds each (`dc-lesson sweep dc_ablation`,
+# every run from its seed's BC warm start, with the seeds printed below (`dc-lesson sweep dc_ablation`,
 # `dc_lr`, `gail_lr`; `dc_lesson.experiments.ablations` reads them):
 #
 # * **loops** (Figure 3): DC with L = 1, 2, 3, 4 loops of one fixed number of iterations, and
