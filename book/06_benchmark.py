@@ -438,6 +438,14 @@ if t1 is not None:
 #   $\pi'$ before they are averaged (Figure 6: the two copies agree more as a loop converges)
 #   and, under consensus ADMM, the primal and dual residuals (how far the two copies are from
 #   agreeing, and how much their agreement point still moves).
+#
+# Two things to know when reading the rows. DC's checkpoints are spaced over its policy
+# iterations' interactions (loops × iterations × batch), which leave out the episodes each
+# refit of $P_w$ samples, so its last checkpoint comes a little before the end of its run;
+# the final return (the table, Figure 4) is measured at the end, and on Hopper DC's
+# evaluations jump from one checkpoint to the next (the stability claim below), so the two
+# can differ by much. And `dc-loops=2` and `dc-lr=0.0003` are one configuration run in two
+# studies: their identical numbers are the grid's determinism, seen from outside.
 
 # %%
 from dc_lesson.experiments import ablations
@@ -475,6 +483,18 @@ if abl_start:
            f"learning rate\" and \"faster\" below measure how much of the start's return a "
            f"learner keeps, not what it adds." if at == table_three_words.CEILING else
            f", {at}." if at else ".")))
+    from dc_lesson.experiments import aggregate as _agg
+    minutes = {c["row"]: c["minutes"]
+               for c in _agg.costs("dc_ablation", abl.get("ablation", {}).get("budget",
+                                                                               "lesson"))}
+    loop_time = [f"{r.replace('dc-', '')}: {minutes[r]:.1f}" for r in ablations.LOOP_ROWS
+                 if r in minutes]
+    if loop_time:
+        display(Markdown(
+            "Figure 3's other half, the time of a run (mean minutes per cell, one worker, the "
+            "whole cell with its BC start and evaluations, on a machine sometimes shared): "
+            + ", ".join(loop_time) + ". The paper finds the time roughly linear in the number "
+            "of loops."))
     lines = ablations.lr_lines(abl)
     if "gail" in lines:
         lrs, mean = lines["gail"][0], lines["gail"][1]
