@@ -633,16 +633,17 @@ if t3 is not None:
            f"workers." if plan["todo"] else
            f"complete: {done_hours / 2:.1f} hours of wall time on two workers.")))
     idle = _sweep.reprice(_studies.get("table3"), _budget.get(t3["budget"]), study.IDLE_SINCE,
-                          workers=2)
+                          workers=2, until=study.IDLE_UNTIL)
     display(Markdown(
         f"Those wall times mix every load the cells ran under (some beside the test suite). "
         f"Priced instead by the {idle['window_cells']} cells that ran with the machine given "
-        f"to the sweep alone (since {idle['since'][:16].replace('T', ' ')} UTC, "
-        f"`study.IDLE_SINCE`), each cell at the median of its learner and task there, the "
-        f"whole grid costs {idle['cpu_seconds'] / 3600:.1f} CPU-hours: "
+        f"to the sweep alone (from {idle['since'][:16].replace('T', ' ')} to "
+        f"{idle['until'][11:16]} UTC, `study.IDLE_SINCE` and `IDLE_UNTIL`), each cell at the "
+        f"median of its learner and task there, the whole grid costs "
+        f"{idle['cpu_seconds'] / 3600:.1f} CPU-hours: "
         f"**{idle['wall_seconds'] / 3600:.1f} hours on two workers**, what a reader's "
         f"overnight run on this machine takes (`dc-lesson sweep table3 --dry-run "
-        f"--priced-since {study.IDLE_SINCE}`)."))
+        f"--priced-since {study.IDLE_SINCE} --priced-until {study.IDLE_UNTIL}`)."))
 
 # %% [markdown]
 # ## The book's verdicts in one table
