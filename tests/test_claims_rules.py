@@ -143,6 +143,11 @@ def test_chapter_1s_growth_verdict_reads_the_paired_intervals_by_the_book_rule()
     assert [p[1] for p in v.per_task] == ["reproduced", "contradicted", "inconclusive",
                                           "inconclusive"]
     assert v.verdict.startswith("reproduced on 1 of 4 tasks")
+    # one seed: no interval (null bounds in the aggregate), no verdict, no crash
+    one = pair("e", 0.1, 0.3, n=1)
+    one["scaled_return"].update(lo=None, hi=None)
+    v = claims.bc_growth({"paired": [one]})
+    assert v.per_task[0][1] == "inconclusive" and "(no interval)" in v.evidence
 
 
 def test_the_hidden_coin_collapse_is_gail_coin_against_its_own_start():

@@ -131,8 +131,13 @@ class VecEnv:
         self._take([i])
         return self._outputs(self.n_active)[0][i]
 
+    def _running(self) -> None:
+        if self.n_active == 0:
+            raise RuntimeError("no episode is running: call reset(seeds) first")
+
     def get_states(self, sig=_INTEGRATION) -> np.ndarray:
         """The running copies' MuJoCo states (``mj_getState`` with ``sig``), float64."""
+        self._running()
         if self._batch is None:
             out = np.empty((self.n_active, mujoco.mj_stateSize(self._model, sig)))
             for row, e in zip(out, self.envs):
@@ -152,6 +157,9 @@ class VecEnv:
     def data(self, i: int) -> mujoco.MjData:
         """Copy ``i``'s MjData as the last step left it (state and derived fields): batched,
         a copy taken from the batch; per copy, its Physics' own data."""
+        self._running()
+        if not 0 <= i < self.n_active:
+            raise ValueError(f"copy {i} is not running: {self.n_active} episodes are")
         if self._batch is None:
             return self.envs[i].physics.data.ptr
         return self._batch.get_data(i)
