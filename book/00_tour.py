@@ -395,9 +395,11 @@ render.video(clips, fps=15)
 # ## How fast is a step?
 #
 # Everything later in the book is bounded by how fast we can collect experience, so the
-# library steps many copies of a task in lockstep (`tasks.load_vec`): one Python loop sets
-# each copy's controls and advances its physics, then one NumPy pass computes every copy's
-# observation, reward and mode feature. The benchmark `dc-lesson perf rollout` times this
+# library steps many copies of a task in lockstep (`tasks.load_vec`): one call into MuJoCo's
+# batch API (`mujoco.batch`, one thread) sets every copy's controls and advances its physics,
+# then one NumPy pass computes every copy's observation, reward and mode feature, to the bit
+# what stepping each copy through dm_control gives (a test compares them over whole
+# episodes). The benchmark `dc-lesson perf rollout` times this
 # path against raw `mujoco.mj_step` on the same model (the ceiling: physics and nothing else)
 # and against dm_control's own `Environment.step`. Its stored result,
 # `data/results/bench_rollout.json`, records the command, machine and revision; a test checks

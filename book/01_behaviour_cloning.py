@@ -244,7 +244,6 @@ print(f"BC with {N_LIVE} demonstrations on {LIVE_TASK}: return "
 # below, inconclusive if it includes zero.
 
 # %%
-from dc_lesson.evaluation import stats
 from dc_lesson.experiments import claims, report
 
 cells_bench = read_result("bc_demos.json")
@@ -304,6 +303,7 @@ plt.show()
 
 # %%
 max_epochs = cells_bench["bc_config"]["epochs"]
+growth = {p[0]: p[1] for p in claims.bc_growth(cells_bench).per_task}   # the verdict rule
 lines = []
 for task in bench_tasks:
     s = summary[summary["task"] == task].sort_values("n_demos")
@@ -311,8 +311,7 @@ for task in bench_tasks:
     means = s["scaled_return_mean"].tolist()
     pair = next(p for p in cells_bench["paired"] if p["task"] == task)
     d = pair["scaled_return"]
-    ci = stats.Interval(d["mean"], d["lo"], d["hi"], d["n"], d["method"])
-    word = claims.judge(ci, +1) if pair["n_seeds"] >= claims.MIN_SEEDS else "inconclusive"
+    word = growth[task]
     at_limit = r.groupby("n_demos")["epochs_run"].apply(lambda e: int((e >= max_epochs).sum()))
     lines.append(
         f"* **`{task}`**: the mean scaled return {report.trend(means)} "

@@ -39,7 +39,6 @@
 
 # %%
 import copy
-import dataclasses
 import time
 
 import matplotlib.pyplot as plt
@@ -421,9 +420,7 @@ if HAVE_COIN:
 # %%
 if HAVE_COIN:
     display(Markdown("\n".join(table_one.against_start(t1, "gail-coin", "bc-coin"))))
-    collapse = claims.judge_claim(
-        dataclasses.replace(claims.GAIL_COLLAPSES, a="gail-coin", b="bc-coin"), coin_obs,
-        measure=claims.largest_share)
+    collapse = claims.hidden_coin_collapse(t1)
     display(Markdown(f"**{collapse.claim}** (largest mode's share, GAIL minus its start, "
                      f"per seed), on the hidden-coin demonstrations: **{collapse.verdict}**. "
                      f"{collapse.evidence}."))

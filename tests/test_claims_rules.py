@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from dc_lesson.evaluation import stats
-from dc_lesson.experiments import claims
+from dc_lesson.experiments import claims, verdict_rules
 
 
 def _obs(delta, *, measure="emd", seeds=10, tasks=("t1", "t2"), noise=0.01, a="dc", b="bc",
@@ -117,3 +117,45 @@ def test_arriving_nowhere_is_not_collapsing_onto_a_mode():
            for s, m in enumerate((nowhere, one))]
     (summary,) = _imitation.mode_summary(obs, {"t": {"red": 0.5, "blue": 0.5, "none": 0.0}}, 50)
     assert summary["largest_share"] == [0.0, 0.9] and summary["collapsed_share"] == 0.5
+
+
+@pytest.mark.parametrize("delta, want", [(-0.05, "reproduced"), (-0.5, "contradicted"),
+                                         (0.3, "reproduced")])
+def test_a_non_inferiority_claim_is_judged_against_its_margin_not_zero(delta, want):
+    # "a is comparable to b": a small loss is within the margin, a large one is not, and being
+    # better is "comparable or better"; the ordinary rule would call the first contradicted
+    c = claims.Claim("a is comparable to b", "test", "scaled_return", "dc", "bc", +1, "test",
+                     margin=claims.MARGIN)
+    v = claims.judge_claim(c, _obs(delta, measure="scaled_return", noise=0.01))
+    assert [p[1] for p in v.per_task] == [want, want]
+    assert f"above -{claims.MARGIN}" in c.rule
+    assert verdict_rules.non_inferior(stats.Interval(-0.1, -0.2, 0.0, 10, "x"), 0.1) == "inconclusive"
+
+
+def test_chapter_1s_growth_verdict_reads_the_paired_intervals_by_the_book_rule():
+    def pair(task, lo, hi, n=10):
+        return {"task": task, "a": "bc n=25", "b": "bc n=4", "n_seeds": n,
+                "scaled_return": {"mean": (lo + hi) / 2, "lo": lo, "hi": hi, "n": n,
+                                  "method": "BCa"}}
+    rec = {"paired": [pair("a", 0.1, 0.3), pair("b", -0.3, -0.1), pair("c", -0.1, 0.1),
+                      pair("d", 0.1, 0.3, n=claims.MIN_SEEDS - 1)]}
+    v = claims.bc_growth(rec)
+    assert [p[1] for p in v.per_task] == ["reproduced", "contradicted", "inconclusive",
+                                          "inconclusive"]
+    assert v.verdict.startswith("reproduced on 1 of 4 tasks")
+    # one seed: no interval (null bounds in the aggregate), no verdict, no crash
+    one = pair("e", 0.1, 0.3, n=1)
+    one["scaled_return"].update(lo=None, hi=None)
+    v = claims.bc_growth({"paired": [one]})
+    assert v.per_task[0][1] == "inconclusive" and "(no interval)" in v.evidence
+
+
+def test_the_hidden_coin_collapse_is_gail_coin_against_its_own_start():
+    def o(row, seed, share):
+        return {"task": "reacher2", "row": row, "seed": seed, "n_demos": 18,
+                "mode_shares": {"0": share, "1": 1 - share - 0.0, "none": 0.0}}
+    obs = [o("bc-coin", s, 0.5) for s in range(6)] + [o("gail-coin", s, 0.95 - 0.01 * s)
+                                                       for s in range(6)]
+    assert claims.hidden_coin_collapse({"mean": {"observations": obs[:6]}}) is None
+    v = claims.hidden_coin_collapse({"mean": {"observations": obs}})
+    assert v.verdict == "reproduced" and "gail-coin - bc-coin" in v.evidence

@@ -97,6 +97,9 @@ CASES = [
     (["train", "gail", "--task", "reacher4"], "corrupt_demos", "does not match its sha256"),
     (["sweep", "table1", "--hours", "0"], None, "positive finite number"),
     (["sweep", "table1", "--hours", "nan"], None, "positive finite number"),
+    (["sweep", "table3", "--priced-since", "2026-12-03T11:55"], None, "add --dry-run"),
+    (["sweep", "table3", "--dry-run", "--priced-until", "2026-12-03T14:10"], None,
+     "add --priced-since"),
 ]
 
 

@@ -58,9 +58,9 @@ def test_the_planner_predicts_the_environments_data_over_its_whole_horizon(task)
     controls = rng.uniform(p.low, p.high, (1, H, venv.spec.act_dim))
     fields = p.predicted_fields(p._states(1), controls)
     predicted = p.predict(p._states(1), controls)[0]
-    d = venv.envs[0].physics.data
     for j in range(H):
         _, reward, _, _ = venv.step(controls[:, j])
+        d = venv.data(0)
         for k, v in fields.items():
             np.testing.assert_allclose(v[j], getattr(d, k), rtol=1e-9, atol=1e-9, err_msg=k)
         assert abs(predicted[j] - reward[0]) < 1e-9
@@ -269,3 +269,13 @@ def test_the_two_stages_run_apart_and_give_the_file_of_one_run(tmp_path, monkeyp
         demos.make_demos("walker", directory=staged_dir, stage="random", **kw)
     with pytest.raises(ValueError, match="without --stage"):
         demos.make_demos("cartpole", directory=staged_dir, stage="demos", **kw)
+
+
+def test_an_episode_of_a_planner_renders():
+    # the planner reads the simulator state of the environment it acts in: the rendered
+    # episode must hand it a running one (a batched copy left behind would crash it)
+    from dc_lesson.viz import render
+    frames = render.episode_frames("walker", PredictiveSampling("walker", TINY), n_steps=2,
+                                   every=1, height=24, width=32)
+    assert len(frames) == 3 and frames[0].shape == (24, 32, 3)
+    assert not np.array_equal(frames[0], frames[2])

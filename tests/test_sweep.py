@@ -236,3 +236,10 @@ def test_the_grid_repriced_by_a_window_uses_the_window_s_cells_and_falls_back(mo
     assert "priced by the 2 cells finished since" in sweep.format_reprice(r)
     with pytest.raises(sweep.SweepError, match="not an ISO time"):
         sweep.reprice(study, lesson, "yesterday")
+    # a window with an end: a later (loaded) cell is left out of the window's median
+    records.append(record("dc", 900.0, "2026-12-03T15:00:00+00:00"))
+    r = sweep.reprice(study, lesson, "2026-12-03T11:55", workers=2, until="2026-12-03T14:10")
+    assert r["cpu_seconds"] == pytest.approx(110.0 * n_dc + 10.0 * n_bc)
+    assert "and before 2026-12-03T14:10" in sweep.format_reprice(r)
+    with pytest.raises(sweep.SweepError, match="--priced-until 'soon' is not an ISO time"):
+        sweep.reprice(study, lesson, "2026-12-03T11:55", until="soon")

@@ -148,7 +148,7 @@ def test_comparability_is_non_inferiority_with_a_declared_margin():
     assert _verdict(t3.verdicts(_single(0.0, 0.2, 0.2)), t3.COMPARABLE) == \
         {"inconclusive (all 2 tasks)"}
     assert _verdict(t3.verdicts(_single(0.0, 0.01, 0.2, n_seeds=4)), t3.COMPARABLE) == \
-        {"inconclusive (all 2 tasks)"}
+        {"inconclusive; not judged on ant, hopper (fewer than 5 paired seeds)"}
     # one seed has no interval: the evidence says so, never "[nan, nan]"
     one = [v for v in t3.verdicts(_single(0.0, 0.01, 0.2, n_seeds=1)) if v["claim"] ==
            t3.COMPARABLE]
@@ -203,3 +203,34 @@ def test_stability_compares_the_spread_of_the_second_half_of_each_curve():
     # a jump in the first half is learning, not instability: equal late spreads decide nothing
     assert _verdict(t3.verdicts(rec(0.05, 0.05, dc_early=-0.9)), t3.DC_STABLE.name) == \
         {"inconclusive"}
+
+
+def test_curves_are_compared_on_the_checkpoints_every_learner_reached():
+    # GAIL's whole batches stop short of the last mark: DC's curve is cut there too, so a late
+    # wobble only DC's extra checkpoint shows cannot decide stability or speed.
+    out = []
+    for s in range(6):
+        dc = [0.5, 0.6, 0.6 + 0.01 * s, 0.6, -0.9 + 0.1 * s]       # its 5th point: a collapse
+        gail = [0.5, 0.6, 0.6 + 0.01 * s, 0.6]
+        for row, vals, marks in (("dc", dc, (20, 40, 60, 80, 100)), ("gail", gail,
+                                                                      (20.5, 41, 61.5, 82))):
+            out.append({"task": "hopper", "n_demos": 4, "row": row, "seed": s,
+                        "scaled_return": 0.6, "curve": [{"steps": m, "scaled_return": v}
+                                                        for m, v in zip(marks, vals)]})
+    vs = t3.verdicts({"observations": out})
+    assert _verdict(vs, t3.DC_STABLE.name) == {"inconclusive"}
+    assert _verdict(vs, t3.DC_FASTER.name) == {"inconclusive"}
+    assert [p["steps"] for p in t3._common_curves(out)[0]["curve"]] == [20, 40, 60, 80]
+
+
+def test_the_papers_returns_are_scaled_by_its_own_table_two():
+    # every task of its Table III has its expert and random returns, the expert above random
+    assert set(t3.PAPER_TABLE_III) <= set(t3.PAPER_TABLE_II)
+    for task, ((expert, _), (random, _)) in t3.PAPER_TABLE_II.items():
+        assert expert > random, task
+        assert t3.paper_scaled(task, expert) == 1 and t3.paper_scaled(task, random) == 0
+    # Reacher's returns are negative: scaling keeps "less negative is better"
+    assert 0 < t3.paper_scaled("reacher1", -9.63) < t3.paper_scaled("reacher1", -5.82) < 1
+    rows = t3.paper_rows()
+    hop = {r["row"]: r["paper_scaled"] for r in rows if (r["task"], r["n_demos"]) == ("hopper", 4)}
+    assert hop["gpril"] < 0.01 < hop["bc"] < hop["dc"] < 1

@@ -1,5 +1,6 @@
 """The ten task ports: specs, rewards, seeding, and the documented behaviour of each task."""
 
+import mujoco
 import numpy as np
 import pytest
 
@@ -326,3 +327,29 @@ def test_vec_env_equals_single_envs_exactly(name):
         np.testing.assert_array_equal(feat_v, np.stack([e.mode_feature() for e in singles]))
     with pytest.raises(tasks.ActionError, match="shape"):
         venv.step(np.zeros((4, spec.act_dim)))
+
+
+@pytest.mark.parametrize("name", ALL)
+def test_the_batched_engine_equals_copy_by_copy_stepping_over_a_whole_episode(name):
+    """mujoco.batch against each copy on its own Physics: every observation, reward, mode
+    feature and state of a whole episode, with a copy restarted alone half way (as PPO's
+    training-only termination does) and states read in two signatures."""
+    spec = tasks.spec(name)
+    fast, ref = tasks.load_vec(name, 3), tasks.load_vec(name, 3, batched=False)
+    assert fast.batched and not ref.batched
+    # fewer episodes than copies: the third sits idle
+    np.testing.assert_array_equal(fast.reset([7, 8])[0], ref.reset([7, 8])[0])
+    rng = np.random.default_rng(1)
+    for t in range(spec.horizon):
+        a = rng.uniform(-1, 1, (2, spec.act_dim))
+        got, want = fast.step(a), ref.step(a)
+        for g, w in zip(got[:3], want[:3]):
+            np.testing.assert_array_equal(g, w)
+        if t == spec.horizon // 2:
+            np.testing.assert_array_equal(fast.reset_one(1, 99), ref.reset_one(1, 99))
+        if t % 250 == 0:
+            for sig in (mujoco.mjtState.mjSTATE_INTEGRATION, mujoco.mjtState.mjSTATE_FULLPHYSICS):
+                np.testing.assert_array_equal(fast.get_states(sig), ref.get_states(sig))
+    assert got[3] and want[3]
+    with pytest.raises(ValueError, match="not running"):
+        fast.reset_one(2, 0)

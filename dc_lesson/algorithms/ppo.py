@@ -226,7 +226,7 @@ class EnvBatch:
         """A terminated copy starts a new episode at once (training-only termination)."""
         self.restarts.append((len(self.episode_actions), i, seed))
         self.restarted[i] = True
-        self.obs[i] = self.venv.envs[i].reset(seed=seed)
+        self.obs[i] = self.venv.reset_one(i, seed)
         self.episode_return[i] = 0.0
 
     def state_dict(self) -> dict:

@@ -122,6 +122,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="with --dry-run: also price the whole grid by the cells finished "
                         "since this time (UTC), e.g. a session that gave the machine to the "
                         "sweep alone")
+    s.add_argument("--priced-until", default=None, metavar="ISO_TIME",
+                   help="with --priced-since: only the cells finished before this time (the "
+                        "end of that session)")
     s.set_defaults(func=cmd_sweep)
     s = sub.add_parser("aggregate", help="a finished study's cells -> data/results/STUDY.json")
     s.add_argument("study")

@@ -24,9 +24,13 @@ def cmd_sweep(args) -> int:
                                     workers))
             if args.priced_since:
                 print(sweep.format_reprice(sweep.reprice(study, b, args.priced_since,
-                                                         args.only, workers=workers)))
+                                                         args.only, workers=workers,
+                                                         until=args.priced_until)))
+            elif args.priced_until:
+                raise sweep.SweepError("--priced-until ends a --priced-since window; add "
+                                       "--priced-since")
             return 0
-        if args.priced_since:
+        if args.priced_since or args.priced_until:
             raise sweep.SweepError("--priced-since prices a --dry-run; add --dry-run")
         report = sweep.run(args.study, b, only=args.only, address=args.address, cpus=args.cpus,
                            command=command_line(), hours=args.hours)

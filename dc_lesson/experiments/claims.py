@@ -33,8 +33,8 @@ import numpy as np
 from dc_lesson.evaluation import stats
 from dc_lesson.experiments import ablations
 # The rule itself, one module down so the ablations judge by it too:
-from dc_lesson.experiments.verdict_rules import (MIN_SEEDS, VERDICTS, Claim, Verdict, count,
-                                                 judge, judge_claim, paired_values)
+from dc_lesson.experiments.verdict_rules import (MARGIN, MIN_SEEDS, VERDICTS, Claim, Verdict,
+                                                 count, judge, judge_claim, paired_values)
 from dc_lesson.storage import read_result
 
 MEASURES = ("emd", "kl", "rkl")
@@ -184,6 +184,44 @@ def _mode_evidence(obs, task_rows, reference_shares, n_episodes: int) -> str:
     return "; ".join(parts)
 
 
+BC_GROWS = Claim(
+    "BC improves with more demonstrations (chapter 1's study)", "Sec. V, Fig. 9",
+    "scaled_return", "bc at the most demonstrations", "bc at the fewest", +1,
+    "the paper: 'the performance of the BC learner policies increase with more expert "
+    "demonstrations'; chapter 1's bc_demos study, 25 against 4 demonstrations, paired by seed")
+
+
+def bc_growth(rec: dict) -> Verdict:
+    """:data:`BC_GROWS` judged on the ``bc_demos`` aggregate's paired differences."""
+    per_task, parts = [], []
+    nan = float("nan")
+    for p in rec["paired"]:
+        d = p.get("scaled_return")
+        if not d:
+            continue
+        # one seed has no interval: its bounds are stored as null
+        ci = stats.Interval(d["mean"], nan if d["lo"] is None else d["lo"],
+                            nan if d["hi"] is None else d["hi"], d["n"], d["method"])
+        word = judge(ci, +1) if p["n_seeds"] >= MIN_SEEDS else "inconclusive"
+        per_task.append((p["task"], word, ci.mean, ci.lo, ci.hi, p["n_seeds"]))
+        band = (f"[{ci.lo:+.3f}, {ci.hi:+.3f}]" if np.isfinite(ci.lo) and np.isfinite(ci.hi)
+                else "(no interval)")
+        parts.append(f"{p['task']}: {p['a']} - {p['b']} = {ci.mean:+.3f} {band} over "
+                     f"{p['n_seeds']} seeds -> {word}")
+    return Verdict(BC_GROWS.name, BC_GROWS.source, BC_GROWS.rule, count(per_task),
+                   "; ".join(parts) or "no paired results", BC_GROWS.reason, tuple(per_task))
+
+
+def hidden_coin_collapse(t1: dict) -> Verdict | None:
+    """Chapter 2's :data:`GAIL_COLLAPSES` on the hidden-coin demonstrations (Table I's
+    ``gail-coin`` against its own start ``bc-coin``, mean action); None before they ran."""
+    coin = [o for o in t1["mean"]["observations"] if o["row"] in ("bc-coin", "gail-coin")]
+    if not any(o["row"] == "gail-coin" for o in coin):
+        return None
+    return judge_claim(dataclasses.replace(GAIL_COLLAPSES, a="gail-coin", b="bc-coin"), coin,
+                       measure=largest_share)
+
+
 def verdicts(obs=None, reference_shares=None, source: str = "",
              eval_episodes: int = 50, actions: str = "mean") -> list[Verdict]:
     """Every claim, judged (module docstring); from the stored results by default: the
@@ -231,5 +269,5 @@ def verdicts(obs=None, reference_shares=None, source: str = "",
 CLAIMS = (LOWEST_DIVERGENCE, HIGHER_RETURN, GAIL_COLLAPSES, DC_KEEPS_MODES, LOOPS, LR_ROBUST,
           FASTER, CONVERGES)
 
-__all__ = ["CLAIMS", "COLLAPSE_SHARE", "MIN_SEEDS", "Claim", "VERDICTS", "Verdict", "count", "judge",
+__all__ = ["BC_GROWS", "bc_growth", "hidden_coin_collapse", "CLAIMS", "COLLAPSE_SHARE", "MIN_SEEDS", "Claim", "VERDICTS", "Verdict", "count", "judge",
            "judge_claim", "observations", "paired_values", "table1_observations", "verdicts"]

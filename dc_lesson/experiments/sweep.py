@@ -93,12 +93,14 @@ def _finished(root=None):
             continue
 
 
-def measured_costs(root=None, since: str | None = None) -> dict[tuple, list[float]]:
+def measured_costs(root=None, since: str | None = None,
+                   until: str | None = None) -> dict[tuple, list[float]]:
     """Wall seconds of every finished cell on disk, by (learner row, task, budget); with
-    ``since`` (an ISO time, UTC), of the cells finished at or after it only."""
+    ``since`` / ``until`` (ISO times, UTC), of the cells finished in [since, until) only."""
     out: dict[tuple, list[float]] = {}
     for r in _finished(root):
-        if since is not None and r["provenance"]["time"] < since:
+        t = r["provenance"]["time"]
+        if (since is not None and t < since) or (until is not None and t >= until):
             continue
         c = r["cell"]
         row = c["learner"] + (f"-{c['variant']}" if c["variant"] else "")
@@ -168,12 +170,12 @@ def plan(study: _cells.Study, b: _budget.Budget, only=(), root=None, workers: in
             "wall_seconds": sum(known) / max(1, workers)}
 
 
-def _iso(since: str) -> str:
+def _iso(since: str, flag: str = "--priced-since") -> str:
     import datetime
     try:
         t = datetime.datetime.fromisoformat(since)
     except ValueError:
-        raise SweepError(f"--priced-since {since!r} is not an ISO time; give e.g. "
+        raise SweepError(f"{flag} {since!r} is not an ISO time; give e.g. "
                          f"2026-12-03T11:55 (UTC, as the cell records' provenance 'time')")
     if t.tzinfo is None:
         t = t.replace(tzinfo=datetime.timezone.utc)
@@ -181,20 +183,21 @@ def _iso(since: str) -> str:
 
 
 def reprice(study: _cells.Study, b: _budget.Budget, since: str, only=(), root=None,
-            workers: int = 2) -> dict:
-    """The whole grid (done cells too) priced by the cells finished since ``since``: per cell
-    the median wall time of its (row, task) among those, else of all cells (:func:`estimate`).
-    What the grid costs on the machine, and under the load, of that window (a session with
-    the machine given to the sweep alone measures an idle machine; the done cells' own wall
-    times mix every load they ran under)."""
+            workers: int = 2, until: str | None = None) -> dict:
+    """The whole grid (done cells too) priced by the cells finished since ``since`` (and
+    before ``until``): per cell the median wall time of its (row, task) among those, else of
+    all cells (:func:`estimate`). What the grid costs on the machine, and under the load, of
+    that window (a session with the machine given to the sweep alone measures an idle
+    machine; the done cells' own wall times mix every load they ran under)."""
     since = _iso(since)
+    until = None if until is None else _iso(until, "--priced-until")
     grid = select(study.grid(b), only)
-    window, every = measured_costs(root, since), measured_costs(root)
+    window, every = measured_costs(root, since, until), measured_costs(root)
     rates = measured_rates(root)
     priced = [(estimate(c, window, b.name), estimate(c, every, b.name, rates)) for c in grid]
     known = [w if w is not None else e for w, e in priced if (w or e) is not None]
     n_window = sum(len(v) for (_, _, bn), v in window.items() if bn == b.name)
-    return {"since": since, "cells": len(grid), "window_cells": n_window,
+    return {"since": since, "until": until, "cells": len(grid), "window_cells": n_window,
             "priced_from_window": sum(w is not None for w, _ in priced),
             "unknown": len(grid) - len(known), "cpu_seconds": sum(known),
             "wall_seconds": sum(known) / max(1, workers), "workers": workers}
@@ -202,7 +205,9 @@ def reprice(study: _cells.Study, b: _budget.Budget, since: str, only=(), root=No
 
 def format_reprice(r: dict) -> str:
     return (f"the whole grid, {r['cells']} cells, priced by the {r['window_cells']} cells "
-            f"finished since {r['since']} ({r['priced_from_window']} cells priced from those, "
+            f"finished since {r['since']}"
+            + (f" and before {r['until']}" if r.get("until") else "")
+            + f" ({r['priced_from_window']} cells priced from those, "
             f"the rest from every finished cell, {r['unknown']} unknown): "
             f"{_fmt_s(r['cpu_seconds'])} of CPU, {_fmt_s(r['wall_seconds'])} of wall time "
             f"on {r['workers']} worker(s)")

@@ -49,6 +49,17 @@ def _span(pairs: list) -> str:
     return ", ".join(f"{t} ({', '.join(ns)})" for t, ns in by.items())
 
 
+def _level(levels: dict, key) -> str | None:
+    """The start's level at (task, count); for a comparison of two counts ("4 -> 25", BC's
+    growth), the level both ends share, else none: growth from the ceiling to the ceiling, or
+    within the random level, is no room used."""
+    task, n = key
+    if isinstance(n, str) and "->" in n:
+        ends = {levels.get((task, int(e))) for e in n.split("->")}
+        return ends.pop() if len(ends) == 1 else None
+    return levels.get(key)
+
+
 def claim_line(rec: dict, claim: str, verdicts: list | None = None) -> str:
     """One Markdown line: the claim's verdicts over its (task, count) pairs, grouped by
     verdict, the pairs with too few seeds apart and the start's level beside each group."""
@@ -66,10 +77,10 @@ def claim_line(rec: dict, claim: str, verdicts: list | None = None) -> str:
         pairs = groups[word]
         if not pairs:
             continue
-        flat = [p for p in pairs if isinstance(p[1], int) and levels.get(p)]
-        note = "; ".join(f"{lvl}: {_span([p for p in flat if levels[p] == lvl])}"
+        flat = [p for p in pairs if _level(levels, p)]
+        note = "; ".join(f"{lvl}: {_span([p for p in flat if _level(levels, p) == lvl])}"
                          for lvl in (CEILING, RANDOM)
-                         if any(levels[p] == lvl for p in flat))
+                         if any(_level(levels, p) == lvl for p in flat))
         parts.append(f"{word} on {_span(pairs)}" + (f" (the start {note})" if note else ""))
     if few:
         parts.append(f"too few paired seeds (fewer than {MIN_SEEDS}) on {_span(few)}")
@@ -92,7 +103,8 @@ def tally(rec: dict, b: str = "bc", verdicts: list | None = None) -> dict:
     """Per (task, count) with at least ``MIN_SEEDS`` paired seeds: ``above`` / ``below`` /
     ``same`` (the paired 95% interval of dc - b, read from the verdict that computed it, above
     zero, below zero, or across it) and whether DC stays within the margin (``kept``: the
-    interval lies above -MARGIN), with the start's level."""
+    interval lies above -MARGIN) or surely loses more than it (``lost``: the interval lies
+    below -MARGIN), with the start's level."""
     levels = start_levels(rec)
     out: dict = {}
     for v in (verdicts if verdicts is not None else table_three.verdicts(rec)):
@@ -104,6 +116,7 @@ def tally(rec: dict, b: str = "bc", verdicts: list | None = None) -> dict:
             side = "above" if lo > 0 else ("below" if hi < 0 else "same")
             out[(task, v["n_demos"])] = {"level": levels.get((task, v["n_demos"])),
                                          "side": side, "kept": lo > -table_three.MARGIN,
+                                         "lost": hi < -table_three.MARGIN,
                                          "mean": mean, "lo": lo, "hi": hi}
     return out
 
@@ -119,7 +132,8 @@ def conclusion(rec: dict) -> str:
       many (task, count) pairs DC's return is above, below or indistinguishable from its BC
       start's, and from GAIL's;
     * at the ceiling: on how many pairs DC keeps the start's return (its paired interval
-      above -MARGIN) and on how many it loses more than the margin may hide;
+      above -MARGIN), on which it loses more than the margin (the interval below -MARGIN),
+      and on which the interval is too wide to tell (it straddles -MARGIN);
     * at the random level: that no learner has anything to start from;
     * with no pair of enough seeds: no answer yet.
     """
@@ -146,11 +160,16 @@ def conclusion(rec: dict) -> str:
                  "is at the expert's return or at random's on every one.")
     if ceil:
         kept = [k for k, v in ceil.items() if v["kept"]]
-        lost = [k for k, v in ceil.items() if not v["kept"]]
+        lost = [k for k, v in ceil.items() if v["lost"]]
+        wide = [k for k, v in ceil.items() if not (v["kept"] or v["lost"])]
+        more = [f"loses more than that on {_span(sorted(lost))}" if lost else "",
+                f"may lose more on {_span(sorted(wide))} (intervals too wide to tell)"
+                if wide else ""]
+        more = [m for m in more if m]
         s.append(f"Where the start already earns the expert's return ({_span(sorted(ceil))}), "
                  f"there is nothing to add: DC keeps it within {table_three.MARGIN} on "
                  f"{len(kept)} of {len(ceil)} pairs"
-                 + (f" and may lose more on {_span(sorted(lost))}" if lost else "") + ".")
+                 + (", " + " and ".join(more) if more else "") + ".")
     if rand:
         s.append(f"Where the start is at the random level ({_span(sorted(rand))}), every RL "
                  f"learner starts from nothing it can use, and none is expected to rise.")

@@ -16,6 +16,9 @@ from dc_lesson.evaluation import stats
 
 VERDICTS = ("reproduced", "contradicted", "inconclusive")
 MIN_SEEDS = 5           # fewer paired seeds than this: inconclusive, whatever the interval
+# The margin of every non-inferiority claim ("comparable"): a tenth of the expert's return
+# over random's on the scaled axis; declared before any Table III result.
+MARGIN = 0.1
 
 
 @dataclasses.dataclass(frozen=True)
@@ -28,9 +31,15 @@ class Claim:
     b: str
     direction: int       # +1: the paper says a - b > 0; -1: a - b < 0
     reason: str          # why this measure and this comparison
+    margin: float | None = None   # set: non-inferiority, "a is not worse than b by margin"
 
     @property
     def rule(self) -> str:
+        if self.margin is not None:
+            return (f"{self.measure}: paired 95% interval of ({self.a} - {self.b}) per seed; "
+                    f"reproduced if it lies above -{self.margin}, contradicted if wholly below "
+                    f"-{self.margin}, inconclusive otherwise (or with fewer than {MIN_SEEDS} "
+                    f"seeds)")
         side = "above" if self.direction > 0 else "below"
         return (f"{self.measure}: paired 95% interval of ({self.a} - {self.b}) per seed; "
                 f"reproduced if it lies {side} zero, contradicted if on the other side, "
@@ -54,6 +63,16 @@ def judge(interval: stats.Interval, direction: int) -> str:
     if side == 0:
         return "inconclusive"
     return "reproduced" if side == direction else "contradicted"
+
+
+def non_inferior(interval: stats.Interval, margin: float) -> str:
+    """The non-inferiority rule: reproduced if the interval of a - b lies above -margin,
+    contradicted if wholly below it, inconclusive if it straddles it (or has no bounds)."""
+    if not (np.isfinite(interval.lo) and np.isfinite(interval.hi)):
+        return "inconclusive"
+    if interval.lo > -margin:
+        return "reproduced"
+    return "contradicted" if interval.hi < -margin else "inconclusive"
 
 
 def count(per_task) -> str:
@@ -86,7 +105,9 @@ def judge_claim(claim: Claim, obs, tasks=None, measure=None, note: str = "") -> 
         if not seeds:
             continue
         ci = stats.paired_diff(va, vb)
-        word = judge(ci, claim.direction) if len(seeds) >= MIN_SEEDS else "inconclusive"
+        word = ("inconclusive" if len(seeds) < MIN_SEEDS else
+                non_inferior(ci, claim.margin) if claim.margin is not None else
+                judge(ci, claim.direction))
         few = f" (fewer than {MIN_SEEDS} seeds)" if len(seeds) < MIN_SEEDS else ""
         per_task.append((task, word, ci.mean, ci.lo, ci.hi, len(seeds)))
         band = (f"[{ci.lo:+.3f}, {ci.hi:+.3f}]" if np.isfinite(ci.lo) and np.isfinite(ci.hi)
@@ -98,5 +119,5 @@ def judge_claim(claim: Claim, obs, tasks=None, measure=None, note: str = "") -> 
                    evidence + (f" ({note})" if note else ""), claim.reason, tuple(per_task))
 
 
-__all__ = ["Claim", "MIN_SEEDS", "VERDICTS", "Verdict", "count", "judge", "judge_claim",
+__all__ = ["MARGIN", "non_inferior", "Claim", "MIN_SEEDS", "VERDICTS", "Verdict", "count", "judge", "judge_claim",
            "paired_values"]

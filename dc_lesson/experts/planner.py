@@ -248,11 +248,7 @@ class PredictiveSampling:
 
     # -- planning --------------------------------------------------------------------------
     def _states(self, n: int) -> np.ndarray:
-        m = self.venv.envs[0].physics.model.ptr
-        out = np.empty((n, mujoco.mj_stateSize(m, _FULL)))
-        for i, env in enumerate(self.venv.envs[:n]):
-            mujoco.mj_getState(m, env.physics.data.ptr, out[i], _FULL)
-        return out
+        return self.venv.get_states(_FULL)[:n]
 
     def _controls(self, knots: np.ndarray) -> np.ndarray:
         """Per-control-step actions (..., H, nu) of plans given by knots (..., K, nu)."""

@@ -24,6 +24,8 @@ import numpy as np
 import torch
 from torch.autograd.graph import increment_version
 
+from dc_lesson.tasks import vec as _vec
+
 _ENABLED = True
 
 _ACTIVATIONS = {
@@ -41,11 +43,13 @@ def enabled() -> bool:
 
 @contextlib.contextmanager
 def disabled():
-    """Within the block, rollouts call the torch modules (the path before issue 14)."""
+    """Within the block, rollouts call the torch modules and new VecEnvs step their copies one
+    by one (the path before issue 14)."""
     global _ENABLED
     old, _ENABLED = _ENABLED, False
     try:
-        yield
+        with _vec.per_copy():
+            yield
     finally:
         _ENABLED = old
 

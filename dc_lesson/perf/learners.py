@@ -3,7 +3,7 @@
 Each learner (BC, PPO, GAIL, DC) runs a fixed, small amount of work on each task (a few
 iterations at the lesson budget's batch sizes), twice per repeat: on the path before issue 14
 (``dc_lesson.nn.fast.disabled()``: the torch modules in every rollout step, validated
-distributions) and on today's path, alternating which goes first.  Every run records its
+distributions, the environment copies stepped one by one) and on today's path, alternating which goes first.  Every run records its
 phases (:mod:`dc_lesson.timing`: ``policy`` and ``env`` in rollouts, ``value``, ``gae``,
 ``ppo_update``, ``bc_step``, ``disc_step``, ``flow_fit``, ``log_p``, ``refit_rollout``) and
 the table gives the median seconds of each phase on both paths, environment steps per second

@@ -7,9 +7,14 @@ For each task it times, on one core and with uniformly random actions:
 * **dm_control**: ``dm_control.rl.control.Environment.step`` (TimeStep and observation dict);
 * **rollout**: :func:`dc_lesson.rollout.collect`, the path every algorithm in the library uses
   (observation, reward, mode feature, validated Trajectory records);
+* **EnvPool**, where it is installed (an optional extra, ``pip install envpool==1.2.5``, never
+  required): the C++ batched environments of the same suite task or Gym model (``ENVPOOL``), as
+  many environments as our batch, one thread, synchronous steps, random actions.  EnvPool
+  returns observations and rewards only (no trajectory records), so it is the ceiling of a
+  batched engine; its episodes end and reset on their own.
 
-and prints control steps per second with the ratios rollout / raw and rollout / dm_control.
-Ratios, not absolute times, are what carry over between machines.
+and prints control steps per second with the ratios rollout / raw, rollout / dm_control and
+rollout / EnvPool.  Ratios, not absolute times, are what carry over between machines.
 """
 
 from __future__ import annotations
@@ -54,6 +59,43 @@ def _dm_control_steps_per_s(name: str, n_steps: int) -> float:
     return n_steps / (time.perf_counter() - t0)
 
 
+# Our task -> EnvPool's environment of the same model (the suite task's XML, or Gym's model
+# for our Gym ports), with the keyword that keeps a fallen Gym robot running like ours.
+ENVPOOL = {"cartpole": ("CartpoleBalance-v1", {}), "reacher1": ("ReacherEasy-v1", {}),
+           "reacher2": ("ReacherEasy-v1", {}), "reacher4": ("ReacherEasy-v1", {}),
+           "hopper": ("Hopper-v5", {"terminate_when_unhealthy": False}),
+           "walker": ("WalkerWalk-v1", {}), "halfcheetah": ("CheetahRun-v1", {}),
+           "halfcheetah2": ("CheetahRun-v1", {}),
+           "ant": ("Ant-v5", {"terminate_when_unhealthy": False}),
+           "humanoid": ("HumanoidWalk-v1", {})}
+
+
+def envpool_version() -> str | None:
+    """EnvPool's version if it is installed, else None (the benchmark then skips it)."""
+    try:
+        import envpool
+    except ImportError:
+        return None
+    return envpool.__version__
+
+
+def _envpool_steps_per_s(name: str, n_steps: int, batch: int) -> float:
+    import envpool
+    task_id, kwargs = ENVPOOL[name]
+    env = envpool.make_gymnasium(task_id, num_envs=batch, batch_size=batch, num_threads=1,
+                                 seed=0, **kwargs)
+    env.reset()
+    space = env.action_space
+    steps = max(10, n_steps // batch)
+    actions = np.random.default_rng(0).uniform(space.low, space.high,
+                                               size=(steps, batch) + space.shape)
+    actions = actions.astype(space.dtype)
+    t0 = time.perf_counter()
+    for a in actions:
+        env.step(a)
+    return batch * steps / (time.perf_counter() - t0)
+
+
 def _rollout_steps_per_s(name: str, n_steps: int, batch: int) -> float:
     """Steady state: ``batch`` episodes in lockstep on a VecEnv built beforehand, as an
     algorithm that collects every iteration keeps one."""
@@ -74,28 +116,42 @@ def rollout_benchmark(names=None, n_steps: int = 3000, batch: int = 16,
     (the throughputs reported are medians too).
     """
     rows = []
+    with_envpool = envpool_version() is not None
     for name in names or _tasks.NAMES:
         runs = np.array([[_raw_steps_per_s(name, n_steps), _dm_control_steps_per_s(name, n_steps),
-                          _rollout_steps_per_s(name, n_steps, batch)] for _ in range(repeats)])
-        raw, dm, ours = np.median(runs, axis=0)
-        rows.append({"task": name, "physics steps per control step": _tasks.spec(name).n_sub_steps,
-                     "raw mj_step (ctrl steps/s)": raw, "dm_control Environment": dm,
-                     "dc_lesson rollout": ours,
-                     "rollout / raw": float(np.median(runs[:, 2] / runs[:, 0])),
-                     "rollout / dm_control": float(np.median(runs[:, 2] / runs[:, 1])),
-                     "repeats": repeats, "batch": batch})
+                          _rollout_steps_per_s(name, n_steps, batch),
+                          _envpool_steps_per_s(name, n_steps, batch) if with_envpool else np.nan]
+                         for _ in range(repeats)])
+        raw, dm, ours, pool = np.median(runs, axis=0)
+        row = {"task": name, "physics steps per control step": _tasks.spec(name).n_sub_steps,
+               "raw mj_step (ctrl steps/s)": raw, "dm_control Environment": dm,
+               "dc_lesson rollout": ours,
+               "rollout / raw": float(np.median(runs[:, 2] / runs[:, 0])),
+               "rollout / dm_control": float(np.median(runs[:, 2] / runs[:, 1])),
+               "repeats": repeats, "batch": batch}
+        if with_envpool:
+            row.update({"envpool task": ENVPOOL[name][0], "EnvPool": pool,
+                        "rollout / EnvPool": float(np.median(runs[:, 2] / runs[:, 3]))})
+        rows.append(row)
     return rows
 
 
 def format_rows(rows: list[dict]) -> str:
+    pool = any("EnvPool" in r for r in rows)
     head = (f"{'task':<13}{'substeps':>9}{'raw/s':>10}{'dm_control/s':>14}{'rollout/s':>11}"
-            f"{'rollout/raw':>13}{'rollout/dm':>12}")
+            f"{'rollout/raw':>13}{'rollout/dm':>12}"
+            + (f"{'EnvPool/s':>11}{'rollout/EnvPool':>17}" if pool else ""))
     lines = [head]
     for r in rows:
         lines.append(f"{r['task']:<13}{r['physics steps per control step']:>9}"
                      f"{r['raw mj_step (ctrl steps/s)']:>10.0f}{r['dm_control Environment']:>14.0f}"
                      f"{r['dc_lesson rollout']:>11.0f}{r['rollout / raw']:>13.2f}"
-                     f"{r['rollout / dm_control']:>12.2f}")
+                     f"{r['rollout / dm_control']:>12.2f}"
+                     + (f"{r['EnvPool']:>11.0f}{r['rollout / EnvPool']:>17.2f}"
+                        if "EnvPool" in r else ""))
+    if not pool:
+        lines.append("(EnvPool is not installed, so it is not compared: pip install "
+                     "envpool==1.2.5, an optional extra)")
     return "\n".join(lines)
 
 
@@ -104,6 +160,7 @@ def main(names=None, n_steps: int = 3000, out: str | None = None, command: str =
     print(format_rows(rows))
     if out:
         write_result(out, {"benchmark": "rollout", "n_steps": n_steps, "rows": rows,
+                           "envpool": envpool_version(),
                            "machine": platform.processor() or platform.machine()},
                      command=command, seeds=[0])
     return rows

@@ -35,8 +35,9 @@ from dm_control.suite import humanoid as suite_humanoid
 from dm_control.suite import walker as suite_walker
 
 from dc_lesson.tasks import ant, cartpole, cheetah, hopper, humanoid, reacher, walker
-from dc_lesson.tasks.base import (NO_MODE, ActionError, PhysicsDiverged, PortTask, TaskEnv, TaskSpec,
-                                  VecEnv)
+from dc_lesson.tasks.base import (NO_MODE, ActionError, PhysicsDiverged, PortTask, TaskEnv,
+                                  TaskSpec)
+from dc_lesson.tasks.vec import VecEnv
 
 @dataclasses.dataclass(frozen=True)
 class Port:
@@ -126,12 +127,13 @@ def model_and_assets(name: str) -> tuple:
     return _PORTS[check_name(name)].model_and_assets()
 
 
-def load_vec(name: str, n_envs: int) -> VecEnv:
-    """``n_envs`` copies of task ``name`` stepped in lockstep (see :class:`VecEnv`)."""
+def load_vec(name: str, n_envs: int, batched: bool | None = None) -> VecEnv:
+    """``n_envs`` copies of task ``name`` stepped in lockstep (see :class:`VecEnv`;
+    ``batched=False`` steps each copy on its own Physics, the reference path)."""
     if n_envs < 1:
         raise ValueError(f"n_envs must be at least 1, got {n_envs}")
     model = make(name).physics.model
-    return VecEnv([make(name, _model=model) for _ in range(n_envs)])
+    return VecEnv([make(name, _model=model) for _ in range(n_envs)], batched=batched)
 
 
 def spec_table() -> list[dict]:

@@ -65,6 +65,16 @@ class Batch:
         for f in fields:
             setattr(self, f, np.stack([getattr(d, f) for d in datas]))
 
+    @classmethod
+    def of_arrays(cls, arrays: dict, n: int, ids) -> "Batch":
+        """The batch of the first ``n`` rows of ``(n_envs, ...)`` arrays already stacked (a
+        ``mujoco.batch.Batch``'s bound fields): views, nothing copied."""
+        b = cls.__new__(cls)
+        b.ids = ids
+        for f, arr in arrays.items():
+            setattr(b, f, arr[:n])
+        return b
+
 
 class PortTask(suite_base.Task):
     """Base of the ports' Task classes: observations, rewards and mode features computed for a
@@ -89,10 +99,14 @@ class PortTask(suite_base.Task):
         """Named indices the batch functions use (override in a port)."""
         return {}
 
-    def gather(self, datas, model) -> Batch:
+    def ids(self, model) -> dict:
+        """The named indices, resolved on first use."""
         if self._ids is None:
             self._ids = self.resolve(model)
-        return Batch(datas, self.fields, self._ids)
+        return self._ids
+
+    def gather(self, datas, model) -> Batch:
+        return Batch(datas, self.fields, self.ids(model))
 
     def batch_observation(self, b: Batch) -> dict:  # pragma: no cover - abstract
         raise NotImplementedError
@@ -105,11 +119,15 @@ class PortTask(suite_base.Task):
 
     def outputs(self, datas, model):
         """(observations (B, obs_dim) float32, rewards (B,) float64, mode features (B, k))."""
-        b = self.gather(datas, model)
-        obs = np.concatenate([v.reshape(len(datas), -1)
+        return self.outputs_of(self.gather(datas, model), len(datas))
+
+    def outputs_of(self, b: Batch, n: int):
+        """:meth:`outputs` of a gathered batch of ``n`` environments."""
+        obs = np.concatenate([v.reshape(n, -1)
                               for v in self.batch_observation(b).values()], axis=1)
-        return (obs.astype(np.float32), np.asarray(self.batch_reward(b), dtype=np.float64),
-                np.asarray(self.batch_mode_feature(b), dtype=np.float32))
+        # fresh arrays: a batch may view live simulation memory that the next step rewrites
+        return (obs.astype(np.float32), np.array(self.batch_reward(b), dtype=np.float64),
+                np.array(self.batch_mode_feature(b), dtype=np.float32))
 
     # dm_control's per-environment interface, as a batch of one.
     def get_observation(self, physics):
@@ -289,84 +307,6 @@ class TaskEnv:
     @property
     def default_camera(self):
         return getattr(self.task, "camera", 0)
-
-
-class VecEnv:
-    """``n_envs`` copies of a task stepped in lockstep, for rollouts and RL.
-
-    Each copy has its own MuJoCo data; one ``step`` sets every copy's control, takes its
-    physics steps (exactly as :class:`TaskEnv`), then computes all observations, rewards and
-    mode features in one batched NumPy pass.  All copies share the fixed horizon, so they start
-    and end their episodes together.  ``reset(seeds)`` may start fewer episodes than there are
-    copies; the rest sit idle.
-    """
-
-    def __init__(self, envs: list[TaskEnv]):
-        if not envs:
-            raise ValueError("a VecEnv needs at least one environment")
-        self.envs = envs
-        self.spec = envs[0].spec
-        self.task = envs[0].task
-        self.action_low, self.action_high = envs[0].action_low, envs[0].action_high
-        self._models = [e.physics.model.ptr for e in envs]
-        self._datas = [e.physics.data.ptr for e in envs]
-        # The fast path sets the controls itself; a task with its own step hooks gets them called.
-        cls = type(self.task)
-        self._hooks = (cls.before_step is not suite_base.Task.before_step
-                       or cls.after_step is not suite_base.Task.after_step)
-        self.n_active = 0
-        self.t = 0
-
-    @property
-    def n_envs(self) -> int:
-        return len(self.envs)
-
-    def reset(self, seeds) -> tuple[np.ndarray, np.ndarray]:
-        """Starts ``len(seeds)`` episodes: returns (observations, mode features)."""
-        seeds = np.asarray(seeds).reshape(-1)
-        if not 1 <= len(seeds) <= self.n_envs:
-            raise ValueError(f"reset takes 1 to {self.n_envs} seeds, got {len(seeds)}")
-        for env, seed in zip(self.envs, seeds):
-            env.reset(seed=int(seed))
-        self.n_active = len(seeds)
-        self.t = 0
-        obs, _, feat = self.task.outputs(self._datas[:self.n_active], self._models[0])
-        return obs, feat
-
-    def get_states(self) -> np.ndarray:
-        return np.stack([e.get_state() for e in self.envs[:self.n_active]])
-
-    def check_actions(self, actions) -> np.ndarray:
-        a = np.asarray(actions, dtype=np.float64)
-        shape = (self.n_active, self.spec.act_dim)
-        if a.shape != shape:
-            raise ActionError(f"task {self.spec.name!r} with {self.n_active} running episodes "
-                              f"takes actions of shape {shape}, got shape {a.shape}")
-        if not np.all(np.isfinite(a)):
-            raise ActionError(f"task {self.spec.name!r} got non-finite actions")
-        return np.clip(a, self.action_low, self.action_high)
-
-    def step(self, actions) -> tuple[np.ndarray, np.ndarray, np.ndarray, bool]:
-        """One control step of every running episode: (observations, rewards, mode features,
-        done); ``done`` is True at the horizon, after which ``reset`` is needed."""
-        if self.n_active == 0 or self.t >= self.spec.horizon:
-            raise RuntimeError("call reset() before step(): the episodes are over or not started")
-        a = self.check_actions(actions)
-        n = self.spec.n_sub_steps
-        if self._hooks:
-            for env, ai in zip(self.envs[:self.n_active], a):
-                env.task.before_step(ai, env.physics)
-                step_physics(env.physics.model.ptr, env.physics.data.ptr, n)
-                env.task.after_step(env.physics)
-        else:
-            for m, d, ai in zip(self._models, self._datas[:self.n_active], a):
-                d.ctrl[:] = ai          # what Task.before_step does (set_control)
-                step_physics(m, d, n)
-        obs, rew, feat = self.task.outputs(self._datas[:self.n_active], self._models[0])
-        if not np.all(np.isfinite(obs)):
-            raise PhysicsDiverged(f"the {self.spec.name} simulation diverged at step {self.t}")
-        self.t += 1
-        return obs, rew, feat, self.t >= self.spec.horizon
 
 
 Factory = Callable[[np.random.RandomState], tuple]

@@ -32,16 +32,18 @@ def episode_frames(task: str, policy: Policy, seed: int = 0, n_steps: int = 100,
     is attached to this episode's environment first."""
     check_policy(task, policy)   # a policy of another task: a clear error, not a shape error
     env = _tasks.make(task)
+    # one copy stepped on its own Physics (not batched), so the Physics it renders is current
+    venv = _tasks.VecEnv([env], batched=False)
     act = as_batch_policy(policy)
     if hasattr(policy, "attach"):
-        policy.attach(_tasks.VecEnv([env]))
-    obs = env.reset(seed=seed)
+        policy.attach(venv)
+    obs, _ = venv.reset([seed])
     if hasattr(policy, "reset"):
         policy.reset(np.array([seed], dtype=np.int64))
     frames = [env.render(height, width, camera)]
     for t in range(min(n_steps, env.spec.horizon)):
-        a = np.asarray(act(obs[None]), dtype=np.float64).reshape(-1)
-        obs, _, _ = env.step(a)
+        a = np.asarray(act(obs), dtype=np.float64).reshape(1, -1)
+        obs, _, _, _ = venv.step(a)
         if (t + 1) % every == 0:
             frames.append(env.render(height, width, camera))
     return frames

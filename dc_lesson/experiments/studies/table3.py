@@ -63,12 +63,14 @@ from dc_lesson.experiments import cells, protocol
 from dc_lesson.experiments.studies import _common, _imitation as _im
 
 NAME = "table3"
-# From this time (UTC) the sweep had the machine to itself (3 December 2026: two workers, no
-# tests or other jobs beside them); the cells finished since price the whole grid on an idle
-# machine (``dc-lesson sweep table3 --dry-run --priced-since IDLE_SINCE``), where the done
-# cells' own wall times mix every load they ran under.  Later cells count too: run the rest
-# of the grid alone.
+# In this window (UTC) the sweep had the machine to itself (3 December 2026: two workers, no
+# tests or other jobs beside them; 203 cells); the cells finished in it price the whole grid
+# on an idle machine (``dc-lesson sweep table3 --dry-run --priced-since IDLE_SINCE
+# --priced-until IDLE_UNTIL``), where the done cells' own wall times mix every load they ran
+# under.  The next session's cells ran beside tests and chapter runs (a median 1.34 times
+# the window's wall time for the same learner and task), so the window ends where it did.
 IDLE_SINCE = "2026-12-03T11:55"
+IDLE_UNTIL = "2026-12-03T14:10"
 TASKS = ("cartpole", "reacher1", "hopper", "walker", "halfcheetah", "ant", "humanoid")
 LEARNERS = ("bc", "gail", "dril", "pwil", "ndi", "gpril", "dc")
 
@@ -214,5 +216,5 @@ STUDY = cells.Study(NAME, "Table III / Figures 9 and 11: every learner on the si
                     run_cell=lambda c, n: _common.run_expert_or(c, n, run_cell),
                     aggregate=aggregate, result_file="table3.json")
 
-__all__ = ["IDLE_SINCE", "LEARNERS", "NAME", "STUDY", "TASKS", "cells_at", "expert_manifest", "fresh_reference",
+__all__ = ["IDLE_SINCE", "IDLE_UNTIL", "LEARNERS", "NAME", "STUDY", "TASKS", "cells_at", "expert_manifest", "fresh_reference",
            "learner_config", "reduced_rows", "rl_cell_kept", "run_cell"]
