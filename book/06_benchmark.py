@@ -688,10 +688,17 @@ with pd.option_context("display.max_colwidth", 90):
 # * The single-mode benchmark is one grid of cells, each a (learner, task, demonstration
 #   count, seed) run from the seed's BC start; a killed sweep resumes where it stopped, and
 #   cells accumulate across machines.
-# * Our returns and the paper's are on different reward scales: we compare *orderings*
-#   (Kendall's $\tau$) and report scaled returns (random 0, expert 1).
-# * Each of the paper's claims about Table III is a paired test declared before the results:
-#   reproduced, contradicted or inconclusive, per demonstration count.
+# * Our returns and the paper's are on different reward scales: we report scaled returns
+#   (random 0, expert 1), put the paper's Table III beside ours scaled by its own Table II,
+#   and compare *orderings* (Kendall's $\tau$).
+# * Each of the paper's claims is a paired test with a rule declared before its verdict
+#   could be read (the few declared later say so in their reasons): reproduced, contradicted
+#   or inconclusive, per task and demonstration count, with the tasks of fewer than 5
+#   paired seeds named, not counted.
+# * On this grid the common BC start decides most of the answer: where it already earns
+#   the expert's return, no learner can add to it and the question becomes what a learner
+#   keeps; where it leaves room, the answer above says how DC compares with its start and
+#   with GAIL. Read a verdict beside its flag (*at the ceiling*, *at the random level*).
 #
 # ## Exercises
 #
