@@ -55,6 +55,31 @@ def git_revision() -> str:
         return "unknown"
 
 
+def platform_info() -> dict:
+    """What a number depends on beyond the seed: the CPU and its vector instructions and the
+    numerical libraries' versions.  A cell or benchmark records it because the same seed gives
+    the same bits only on the same kind of machine: NumPy, PyTorch and MuJoCo choose their
+    SIMD kernels at run time (AVX2, AVX-512, ...), whose float rounding differs, and an RL run
+    amplifies a last-bit difference into a different trajectory.  Across machines a cell is
+    another sample of the same experiment, not the same numbers."""
+    import platform as _platform
+
+    import mujoco
+    import numpy
+    import torch
+    cpu = _platform.processor() or ""
+    try:
+        with open("/proc/cpuinfo") as f:
+            cpu = next((line.split(":", 1)[1].strip() for line in f
+                        if line.startswith("model name")), cpu)
+    except OSError:
+        pass
+    return {"cpu": cpu or _platform.machine(), "machine": _platform.machine(),
+            "torch_cpu_capability": torch.backends.cpu.get_cpu_capability(),
+            "python": _platform.python_version(), "numpy": numpy.__version__,
+            "torch": torch.__version__, "mujoco": mujoco.__version__}
+
+
 def sha256(path) -> str:
     """The hex sha256 of a file's bytes."""
     h = hashlib.sha256()
@@ -208,7 +233,7 @@ def write_result(path, payload: dict, *, command: str, seeds) -> pathlib.Path:
     record = {"command": command, "seeds": list(seeds), "budget": _budget.current().name,
               "revision": git_revision(),
               "time": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
-              **payload}
+              "platform": platform_info(), **payload}
     atomic_write_text(path, dumps_standard(record, indent=1) + "\n")
     return path
 

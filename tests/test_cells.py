@@ -5,6 +5,7 @@ import json
 
 import numpy as np
 import pytest
+import torch
 
 from dc_lesson import budget
 from dc_lesson.experiments import cells, studies, sweep
@@ -46,6 +47,10 @@ def test_records_are_written_whole_and_read_back_checked(tmp_path):
     record, feats = cells.load(c, tmp_path)
     assert record["result"] == {"x": 0.25} and feats["f"].dtype == np.float32
     assert record["provenance"]["wall_seconds"] == 1.5 and record["provenance"]["revision"]
+    # which machine kind the numbers reproduce on: the CPU's vector unit and the libraries
+    platform = record["provenance"]["platform"]
+    assert platform["torch_cpu_capability"] == torch.backends.cpu.get_cpu_capability()
+    assert platform["numpy"] == np.__version__ and platform["mujoco"] and platform["cpu"]
     # A record whose content does not match its name is refused, with the fix.
     bad = json.loads(path.read_text())
     bad["config"]["epochs"] = 99

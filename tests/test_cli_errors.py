@@ -100,6 +100,10 @@ CASES = [
     (["sweep", "table3", "--priced-since", "2026-12-03T11:55"], None, "add --dry-run"),
     (["sweep", "table3", "--dry-run", "--priced-until", "2026-12-03T14:10"], None,
      "add --priced-since"),
+    (["sweep", "table3", "--recheck", "2", "--dry-run"], None, "not --dry-run"),
+    (["sweep", "table3", "--recheck", "0"], None, "must be at least 1"),
+    (["sweep", "table3", "--recheck", "1", "--only", "task=nowhere"], None,
+     "matches none of the study"),
 ]
 
 

@@ -1,6 +1,7 @@
 """PPO and its policies: GAE and the clipped loss by hand, time-limit bootstrapping, policy
 files, determinism, exact resume from a checkpoint, and PPO learning cartpole."""
 
+import contextlib
 import dataclasses
 import itertools
 import math
@@ -116,6 +117,76 @@ def test_collect_batch_bootstraps_the_final_observation_at_the_time_limit():
     # Stored actions are the raw samples (some outside [-1, 1]); log-probs are theirs.
     torch.testing.assert_close(batch.logprobs[:5],
                                policy.log_prob(batch.obs[:5], batch.actions[:5]))
+
+
+def _trained_pair(seed: int = 0):
+    """A policy and value network with fitted normalisers and moved weights."""
+    torch.manual_seed(seed)
+    pi, v = GaussianPolicy(6, 3, norm_obs=True), ValueNetwork(6, norm_obs=True)
+    obs = torch.randn(500, 6) * 3 + 1
+    pi.update_obs_norm(obs)
+    v.update_obs_norm(obs)
+    with torch.no_grad():
+        pi.log_std.copy_(torch.tensor([-0.3, -1.2, 0.4]))
+    return pi, v
+
+
+def test_gaussian_terms_equal_torch_normal_bit_for_bit_values_and_gradients():
+    """PPO's minibatch step reads the Gaussian's terms without building a Normal; a
+    reordered formula (or a second exp of log_std) would differ in the last bits and change
+    every stored PPO-based cell."""
+    pi, _ = _trained_pair()
+    obs, act = torch.randn(64, 6) * 3, torch.randn(64, 3)
+
+    def grads(loss):
+        pi.zero_grad()
+        loss.backward()
+        return [p.grad.clone() for p in pi.parameters()]
+
+    dist = pi.distribution(obs)
+    ref_logp, ref_ent = dist.log_prob(act).sum(-1), dist.entropy().sum(-1)
+    ref = grads((ref_logp * torch.linspace(-1, 1, 64)).mean() - 0.1 * ref_ent.mean())
+    mean, logp, ent = pi.gaussian_terms(pi.normalise(obs), act)
+    new = grads((logp * torch.linspace(-1, 1, 64)).mean() - 0.1 * ent.mean())
+    assert torch.equal(mean, dist.mean) and torch.equal(logp, ref_logp)
+    assert torch.equal(ent, ref_ent)
+    assert all(torch.equal(a, b) for a, b in zip(ref, new))
+    assert pi.gaussian_terms(pi.normalise(obs), act, entropy=False)[2] is None
+
+
+def test_the_fast_ppo_update_equals_the_reference_path_bit_for_bit():
+    """The fast path normalises the batch once and skips Normal; the reference path
+    (``fast.disabled()``, as before issue 14) normalises every minibatch and validates a
+    Normal. Same parameters and terms to the bit after two epochs, with a different
+    result for a different minibatch order (so the comparison can fail)."""
+    import copy
+    from dc_lesson.nn import fast
+    config = ppo.PPOConfig(n_envs=2, n_steps=64, n_epochs=2, n_minibatches=4,
+                           total_steps=128, norm_obs=True)
+    envs = ppo.EnvBatch("reacher1", 2, seed=0)
+    pi, v = GaussianPolicy(envs.spec.obs_dim, envs.spec.act_dim, norm_obs=True), \
+        ValueNetwork(envs.spec.obs_dim, norm_obs=True)
+    batch = ppo.collect_batch(envs, pi, v, 64, torch.Generator().manual_seed(0))
+    pi.update_obs_norm(batch.obs)
+    v.update_obs_norm(batch.obs * 2 + 1)   # each network its own statistics
+    batch.advantages, batch.returns = ppo.compute_gae(
+        batch.env_rewards, batch.values, batch.next_values, batch.dones, config.gamma,
+        config.gae_lambda)
+
+    def run(disabled: bool, order_seed: int = 0):
+        p, q = copy.deepcopy(pi), copy.deepcopy(v)
+        opt = fast.adamw([*p.parameters(), *q.parameters()], lr=3e-3, eps=1e-5)
+        with fast.disabled() if disabled else contextlib.nullcontext():
+            terms = ppo.ppo_update(p, q, opt, batch, config,
+                                   torch.Generator().manual_seed(order_seed))
+        return [t.detach().clone() for t in (*p.parameters(), *q.parameters())], terms
+
+    fast_params, fast_terms = run(False)
+    ref_params, ref_terms = run(True)
+    other_params, _ = run(False, order_seed=1)
+    assert fast_terms == ref_terms
+    assert all(torch.equal(a, b) for a, b in zip(fast_params, ref_params))
+    assert not all(torch.equal(a, b) for a, b in zip(fast_params, other_params))
 
 
 def test_seed_stream_continues_episode_seeds():

@@ -55,6 +55,7 @@ def test_an_uninterrupted_sweep_runs_every_cell_once(uninterrupted):
     for p in root.glob("*/*/*.json"):
         prov = json.loads(p.read_text())["provenance"]
         assert prov["torch_threads"] == 1 and prov["budget"] == "smoke"
+        assert prov["platform"]["torch_cpu_capability"]    # taken in the worker that ran it
         assert prov["wall_seconds"] > 0
     again = sweep.run("bc_demos", TINY, only=ONLY, root=root, progress=False)
     assert (again.ran, again.skipped) == (0, 5)     # nothing is ever recomputed

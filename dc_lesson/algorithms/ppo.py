@@ -408,6 +408,17 @@ def ppo_update(policy: GaussianPolicy, value_fn: ValueNetwork, optimizer: torch.
     advantages, targets = batch.advantages.reshape(-1), batch.returns.reshape(-1)
     n = len(obs)
     size = n // config.n_minibatches
+    gaussian = getattr(policy, "log_std", None) is not None
+    fast_path = gaussian and _fast.enabled()
+    if fast_path:
+        # The normalisers are frozen during an update, so each network's inputs are the same
+        # numbers in every epoch: normalise the batch once (elementwise, so minibatch by
+        # minibatch would give the same bits), not once per minibatch step.
+        with torch.no_grad():
+            z_pi, z_v = policy.normalise(obs), value_fn.normalise(obs)
+    else:
+        z_pi = z_v = obs
+    pi_params, v_params = list(policy.parameters()), list(value_fn.parameters())
     terms: dict[str, list[float]] = {k: [] for k in (
         "policy_loss", "value_loss", "entropy", "approx_kl", "clip_fraction",
         "grad_norm_policy", "grad_norm_value")}
@@ -416,21 +427,30 @@ def ppo_update(policy: GaussianPolicy, value_fn: ValueNetwork, optimizer: torch.
         epochs += 1
         epoch_kl = []
         order = torch.randperm(n, generator=generator)
+        # One gather per epoch, then every minibatch is a slice of it: the same rows in the
+        # same order as indexing each minibatch, with one copy instead of n_minibatches.
+        shuffled = [x[order] for x in (z_pi, z_v, actions, old_logp, old_values, advantages,
+                                       targets)]
         for start in range(0, n, size):
-            idx = order[start:start + size]
-            if getattr(policy, "log_std", None) is not None:     # the Gaussian policy
-                dist = policy.distribution(obs[idx])
-                new_logp = dist.log_prob(actions[idx]).sum(-1)
+            zp, zv, act, olp, ov, adv, tg = (x[start:start + size] for x in shuffled)
+            if fast_path:
+                _, new_logp, entropy = policy.gaussian_terms(zp, act)
+                entropy = entropy.mean()
+                new_values = value_fn.value_of(zv)
+            elif gaussian:    # the path before issue 14: a validated Normal per minibatch
+                dist = policy.distribution(zp)
+                new_logp = dist.log_prob(act).sum(-1)
                 entropy = dist.entropy().sum(-1).mean()
+                new_values = value_fn(zv)
             else:     # a mixture (nn.mixture): its exact density, a sampled entropy estimate
-                new_logp = policy.log_prob(obs[idx], actions[idx])
-                entropy = policy.entropy(obs[idx], generator).mean()
-            adv = advantages[idx]
+                new_logp = policy.log_prob(zp, act)
+                entropy = policy.entropy(zp, generator).mean()
+                new_values = value_fn(zv)
             if config.norm_adv:
                 adv = (adv - adv.mean()) / (adv.std() + 1e-8)
             pg_loss, approx_kl, clip_fraction = clipped_surrogate(
-                new_logp, old_logp[idx], adv, config.clip_coef)
-            v_loss = value_loss(value_fn(obs[idx]), old_values[idx], targets[idx],
+                new_logp, olp, adv, config.clip_coef)
+            v_loss = value_loss(new_values, ov, tg,
                                 config.clip_coef if config.clip_vloss else None)
             loss = pg_loss - config.ent_coef * entropy + config.vf_coef * v_loss
             if extra_loss is not None:
@@ -440,8 +460,8 @@ def ppo_update(policy: GaussianPolicy, value_fn: ValueNetwork, optimizer: torch.
             loss.backward()
             # Clip each network on its own: the value loss, with targets up to 1 / (1 - gamma),
             # would otherwise take the whole norm and shrink the policy's step.
-            gn_pi = _fast.clip_grad_norm_(policy.parameters(), config.max_grad_norm)
-            gn_v = _fast.clip_grad_norm_(value_fn.parameters(), config.max_grad_norm)
+            gn_pi = _fast.clip_grad_norm_(pi_params, config.max_grad_norm)
+            gn_v = _fast.clip_grad_norm_(v_params, config.max_grad_norm)
             optimizer.step()
 
             for k, v in (("policy_loss", pg_loss), ("value_loss", v_loss), ("entropy", entropy),

@@ -11,7 +11,8 @@
                                         budget and evaluate it; --save writes its policy
   dc-lesson perf WHAT                   speed benchmarks (dc-lesson perf -h lists them)
   dc-lesson sweep STUDY [--dry-run]     a study's cells on Ray (resumable, accumulating);
-                                        STUDY all: every study (--dry-run: the ledger)
+                                        STUDY all: every study (--dry-run: the ledger);
+                                        --recheck N: rerun N finished cells, compare
   dc-lesson aggregate STUDY             its cells -> data/results/STUDY.json (intervals)
 
 Sizes follow the budget: set DC_LESSON_BUDGET to smoke (seconds, numbers mean nothing),
@@ -125,6 +126,9 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--priced-until", default=None, metavar="ISO_TIME",
                    help="with --priced-since: only the cells finished before this time (the "
                         "end of that session)")
+    s.add_argument("--recheck", type=positive_int, default=None, metavar="N",
+                   help="rerun up to N finished cells (with --only: of that selection) here "
+                        "and compare every number with the record; writes nothing")
     s.set_defaults(func=cmd_sweep)
     s = sub.add_parser("aggregate", help="a finished study's cells -> data/results/STUDY.json")
     s.add_argument("study")

@@ -18,6 +18,16 @@ def cmd_sweep(args) -> int:
         return _sweep_all(args, b)
     try:
         study = studies.get(args.study)
+        if args.recheck is not None:
+            if args.dry_run or args.priced_since or args.priced_until or args.hours:
+                raise sweep.SweepError("--recheck reruns finished cells; it takes --only and "
+                                       "--budget, not --dry-run, --priced-* or --hours")
+            from dc_lesson.experiments import recheck
+            rows = recheck.recheck(args.study, b, args.only, args.recheck)
+            same = sum(r["identical"] for r in rows)
+            print(f"recheck {args.study} ({b.name}): {same} of {len(rows)} cells identical to "
+                  "their records (README, Sweeps: what a difference on another platform means)")
+            return 0
         if args.dry_run:
             workers = args.cpus or os.cpu_count() or 1
             print(sweep.format_plan(study, b, sweep.plan(study, b, args.only, workers=workers),

@@ -205,9 +205,13 @@ def write_record(cell: Cell, result: dict, features: dict | None, provenance: di
 
 
 def provenance(*, command: str, budget: str, threads: int, wall_seconds: float,
-               host: str = "") -> dict:
+               host: str = "", platform: dict | None = None) -> dict:
+    """Where a cell's numbers came from.  ``platform`` (:func:`storage.platform_info`, taken
+    in the process that ran the cell) says which machine kind they reproduce on bit for bit;
+    records written before it was kept have none."""
     return {"command": command, "revision": storage.git_revision(), "budget": budget,
             "torch_threads": int(threads), "wall_seconds": float(wall_seconds), "host": host,
+            "platform": platform if platform is not None else storage.platform_info(),
             "time": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")}
 
 

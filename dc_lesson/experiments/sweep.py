@@ -35,7 +35,7 @@ import statistics
 import tempfile
 import time
 
-from dc_lesson import budget as _budget
+from dc_lesson import budget as _budget, storage
 from dc_lesson.experiments import cells as _cells
 
 ONLY_KEYS = ("learner", "variant", "row", "task", "n_demos", "seed", "stage")
@@ -288,7 +288,8 @@ def execute(cell: _cells.Cell, needs) -> dict:
     t0 = time.perf_counter()
     result, features = studies.get(cell.study).run_cell(cell, needs)
     return {"result": result, "features": features, "wall_seconds": time.perf_counter() - t0,
-            "threads": torch.get_num_threads(), "host": socket.gethostname()}
+            "threads": torch.get_num_threads(), "host": socket.gethostname(),
+            "platform": storage.platform_info()}
 
 
 def _ray_env(b: _budget.Budget) -> dict:
@@ -415,7 +416,8 @@ def run(study_name: str, b: _budget.Budget | None = None, *, only=(), address=No
                         continue
                     prov = _cells.provenance(command=command, budget=b.name,
                                              threads=out["threads"],
-                                             wall_seconds=out["wall_seconds"], host=out["host"])
+                                             wall_seconds=out["wall_seconds"], host=out["host"],
+                                             platform=out.get("platform"))
                     _cells.write_record(cell, out["result"], out["features"], prov, root)
                     walls.setdefault((cell.row, cell.task), []).append(out["wall_seconds"])
                     ran += 1

@@ -71,7 +71,7 @@ class MixturePolicy(_Normalised):
 
     def components(self, obs: torch.Tensor):
         """(log-weights (B, K), means (B, K, A), log-stds (B, K, A))."""
-        h = self.trunk(self._normalise(obs))
+        h = self.trunk(self.normalise(obs))
         out = self.head(h)
         k, a = self.k, self.act_dim
         logits = out[..., :k]

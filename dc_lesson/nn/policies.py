@@ -33,6 +33,7 @@ from dc_lesson.nn.checkpoint import (ModelFileError, PolicyFileError, atomic_tor
 ACTIVATIONS = {"tanh": nn.Tanh, "relu": nn.ReLU, "elu": nn.ELU, "silu": nn.SiLU}
 
 ACTION_LOW, ACTION_HIGH = -1.0, 1.0   # the action bounds of every task port
+_LOG_SQRT_2PI = math.log(math.sqrt(2 * math.pi))   # torch.distributions.Normal's constant
 
 
 # -- building blocks -----------------------------------------------------------------------------
@@ -95,7 +96,8 @@ class _Normalised(nn.Module):
 
     obs_norm: RunningNorm | None
 
-    def _normalise(self, obs: torch.Tensor) -> torch.Tensor:
+    def normalise(self, obs: torch.Tensor) -> torch.Tensor:
+        """The network's input: ``obs`` as float32, through the normaliser if it has one."""
         obs = torch.as_tensor(obs, dtype=torch.float32)
         return obs if self.obs_norm is None else self.obs_norm(obs)
 
@@ -128,7 +130,7 @@ class GaussianPolicy(_Normalised):
 
     def forward(self, obs: torch.Tensor) -> torch.Tensor:
         """The action mean (unclipped)."""
-        return self.mean_net(self._normalise(obs))
+        return self.mean_net(self.normalise(obs))
 
     def distribution(self, obs: torch.Tensor) -> torch.distributions.Normal:
         mean = self(obs)
@@ -137,6 +139,27 @@ class GaussianPolicy(_Normalised):
         from dc_lesson.nn import fast
         return torch.distributions.Normal(mean, self.log_std.exp().expand_as(mean),
                                           validate_args=not fast.enabled())
+
+    def gaussian_terms(self, z: torch.Tensor, act: torch.Tensor, entropy: bool = True):
+        """``(mean, log pi(act | s), entropy of pi(. | s))`` for inputs ``z = normalise(obs)``,
+        the last two summed over the action dimensions (shape (B,)); the entropy is None
+        unless asked for.
+
+        What ``distribution(obs)``'s ``mean``, ``log_prob(act).sum(-1)`` and
+        ``entropy().sum(-1)`` give: torch's Normal formulas in its order of operations, one
+        ``scale`` tensor for all of them (so the same bits and the same gradients,
+        ``tests/test_ppo.py``), without building a ``Normal`` per call, which on these small
+        networks costs more than its arithmetic.  PPO and BC call this once per minibatch
+        step; taking ``z`` lets PPO normalise a batch once (the normaliser is frozen during
+        an update) instead of once per minibatch and epoch.
+        """
+        mean = self.mean_net(z)
+        scale = self.log_std.exp().expand_as(mean)
+        var = scale ** 2
+        log_scale = scale.log()
+        logp = -((act - mean) ** 2) / (2 * var) - log_scale - _LOG_SQRT_2PI
+        ent = (0.5 + 0.5 * math.log(2 * math.pi) + torch.log(scale)).sum(-1) if entropy else None
+        return mean, logp.sum(-1), ent
 
     def log_prob(self, obs: torch.Tensor, act: torch.Tensor) -> torch.Tensor:
         """log pi(act | obs), summed over the action dimensions: shape (B,)."""
@@ -180,7 +203,11 @@ class ValueNetwork(_Normalised):
 
     def forward(self, obs: torch.Tensor) -> torch.Tensor:
         """Values, shape (...,) for observations (..., obs_dim)."""
-        return self.net(self._normalise(obs)).squeeze(-1)
+        return self.net(self.normalise(obs)).squeeze(-1)
+
+    def value_of(self, z: torch.Tensor) -> torch.Tensor:
+        """Values for inputs ``z = normalise(obs)`` (see ``GaussianPolicy.gaussian_terms``)."""
+        return self.net(z).squeeze(-1)
 
 
 class StochasticPolicy:
