@@ -96,6 +96,11 @@ BUDGET = notebook.start(
 # overnight on a 2-core machine, the `paper` budget is the paper's sizes for a Ray cluster
 # (`dc-lesson sweep table3 --budget paper --address auto`). `dc-lesson sweep table3
 # --dry-run` prints the cells and their estimated cost from the cells already measured.
+# A cell reproduces its record to the bit on the kind of machine that made it; on another
+# CPU (other vector instructions, other float rounding, which a learner amplifies) it is
+# another sample of the same experiment, which is what the verdicts' intervals over seeds
+# are for. `dc-lesson sweep table3 --recheck 3 --only task=hopper` reruns finished cells
+# and compares them with their records; the README (Sweeps) gives what it found here.
 
 # %%
 rows = []
@@ -687,7 +692,8 @@ with pd.option_context("display.max_colwidth", 90):
 #
 # * The single-mode benchmark is one grid of cells, each a (learner, task, demonstration
 #   count, seed) run from the seed's BC start; a killed sweep resumes where it stopped, and
-#   cells accumulate across machines.
+#   cells accumulate across machines (each another sample of its experiment, not the same
+#   digits, when the CPU differs).
 # * Our returns and the paper's are on different reward scales: we report scaled returns
 #   (random 0, expert 1), put the paper's Table III beside ours scaled by its own Table II,
 #   and compare *orderings* (Kendall's $\tau$).

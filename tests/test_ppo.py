@@ -162,7 +162,7 @@ def test_the_fast_ppo_update_equals_the_reference_path_bit_for_bit():
     import copy
     from dc_lesson.nn import fast
     config = ppo.PPOConfig(n_envs=2, n_steps=64, n_epochs=2, n_minibatches=4,
-                           total_steps=128, norm_obs=True)
+                           total_steps=128, norm_obs=True, ent_coef=0.01)   # entropy's path too
     envs = ppo.EnvBatch("reacher1", 2, seed=0)
     pi, v = GaussianPolicy(envs.spec.obs_dim, envs.spec.act_dim, norm_obs=True), \
         ValueNetwork(envs.spec.obs_dim, norm_obs=True)

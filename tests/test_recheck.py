@@ -1,6 +1,6 @@
-"""``dc-lesson sweep STUDY --recheck N``: finished cells rerun here and compared with their
-records, number by number; a record changed by a last bit is caught, a rerun on the same
-platform is identical, and nothing is written."""
+"""``dc-lesson sweep STUDY --recheck N``: finished cells rerun in a sweep worker's environment
+and compared with their records, number by number; a record changed by a last bit is caught,
+a rerun on the same platform is identical, and nothing is written."""
 
 import dataclasses
 import json
@@ -29,6 +29,9 @@ def test_a_rerun_is_identical_and_a_changed_record_is_caught(tmp_path):
     rows = recheck.recheck("bc_demos", TINY, ONLY, limit=5, root=root, log=lambda s: None)
     assert [r["cell"].split("/")[2].split("__")[0] for r in rows] == ["bc"]  # not the reference
     assert rows[0]["identical"] and rows[0]["same_platform"]
+    # without --only: the learners' cells before the references (which select() lists first)
+    first = recheck.recheck("bc_demos", TINY, (), limit=1, root=root, log=lambda s: None)
+    assert first[0]["cell"].split("/")[2].startswith("bc__") and first[0]["identical"]
     assert {p: p.read_bytes() for p in root.rglob("*.json")} == before    # nothing written
     # One number of the record moved by a last bit: found, with its path and size.
     path = next(p for p in root.rglob("bc__*.json"))

@@ -104,6 +104,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="learners: which learners (default: bc ppo gail dc)")
     s.add_argument("--repeats", type=positive_int, default=2,
                    help="learners: timed runs per path (default 2)")
+    s.add_argument("--seeds", type=positive_int, default=None,
+                   help="dc-fit: seeds, each a BC start and two DC runs (default 5)")
     s.set_defaults(func=cmd_perf)
     s = sub.add_parser("sweep", help="run a study's cells on Ray (skips finished cells)")
     s.add_argument("study", help="a study of dc_lesson.experiments.studies (bc_demos, ...), "

@@ -17,6 +17,8 @@ PERFS = {
                  {"tasks"}),
     "flow-fit": ("DC's density fit under cheaper solvers: time against held-out NLL",
                  {"tasks"}),
+    "dc-fit": ("whole DC runs with today's density fit and the cheaper one, paired by seed",
+               {"tasks", "seeds"}),
 }
 
 
@@ -131,6 +133,13 @@ def cmd_perf(args) -> int:
         if args.tasks is not None and len(args.tasks) != 1:
             raise UsageError("perf flow-fit runs on one task; give one name to --tasks")
         perf_flow_fit.main(args.tasks, out=args.out, command=command_line())
+        return 0
+    if args.what == "dc-fit":
+        from dc_lesson.perf import dc_fit as perf_dc_fit
+        if args.tasks is not None and len(args.tasks) != 1:
+            raise UsageError("perf dc-fit runs on one task; give one name to --tasks")
+        perf_dc_fit.main(args.tasks, seeds=range(args.seeds or 5), out=args.out,
+                         command=command_line())
         return 0
     if args.what == "learners":
         from dc_lesson.perf import learners as perf_learners

@@ -14,20 +14,25 @@ def cmd_sweep(args) -> int:
     from dc_lesson import budget
     from dc_lesson.experiments import aggregate, cells, studies, sweep
     b = budget.get(args.budget) if args.budget else budget.current()
+    if args.recheck is not None and (args.study == "all" or args.dry_run or args.hours
+                                     or args.priced_since or args.priced_until
+                                     or args.address or args.cpus):
+        print("dc-lesson: --recheck reruns finished cells of one study here; it takes "
+              "--only and --budget, not 'all', --dry-run, --priced-*, --hours, --address "
+              "or --cpus", file=sys.stderr)
+        return 2
     if args.study == "all":
         return _sweep_all(args, b)
     try:
         study = studies.get(args.study)
         if args.recheck is not None:
-            if args.dry_run or args.priced_since or args.priced_until or args.hours:
-                raise sweep.SweepError("--recheck reruns finished cells; it takes --only and "
-                                       "--budget, not --dry-run, --priced-* or --hours")
             from dc_lesson.experiments import recheck
             rows = recheck.recheck(args.study, b, args.only, args.recheck)
             same = sum(r["identical"] for r in rows)
             print(f"recheck {args.study} ({b.name}): {same} of {len(rows)} cells identical to "
                   "their records (README, Sweeps: what a difference on another platform means)")
-            return 0
+            # a difference on the record's own platform is the code's: a failure
+            return 1 if any(r["same_platform"] and not r["identical"] for r in rows) else 0
         if args.dry_run:
             workers = args.cpus or os.cpu_count() or 1
             print(sweep.format_plan(study, b, sweep.plan(study, b, args.only, workers=workers),

@@ -186,12 +186,18 @@ def full_result(record: dict) -> dict:
     return merged(record["result"], record.get("timing", {}))
 
 
+def record_form(result: dict) -> tuple[dict, dict]:
+    """``(numbers, timing)`` of a cell's result as its record keeps them (JSON values, NaN
+    kept as NaN, wall-clock entries apart): what a rerun is compared in."""
+    return split_timing(json.loads(json.dumps(result, default=_jsonable)))
+
+
 def write_record(cell: Cell, result: dict, features: dict | None, provenance: dict,
                  root=None) -> pathlib.Path:
     """Writes the cell's record (and its features first) atomically; returns the JSON path.
     Wall-clock entries of ``result`` go to ``timing`` (:func:`split_timing`)."""
     path = cell.path(root)
-    numbers, timing = split_timing(json.loads(json.dumps(result, default=_jsonable)))
+    numbers, timing = record_form(result)
     record = {"cell": cell.identity(), "config": cell.config, "result": numbers,
               "timing": timing,
               "features_file": features_path(path).name if features else None,
@@ -301,5 +307,5 @@ class Study:
 
 
 __all__ = ["Cell", "CellError", "Study", "canonical", "cells_root", "config_hash", "full_result",
-           "is_done", "load", "make_cell", "merged", "split_timing", "provenance", "read_features", "read_record", "records",
-           "write_record"]
+           "is_done", "load", "make_cell", "merged", "provenance", "read_features",
+           "read_record", "record_form", "records", "split_timing", "write_record"]

@@ -2,26 +2,36 @@
 
 A sweep never recomputes a finished cell; this does, on purpose, to ask whether the numbers
 on record are the numbers today's code gives on this machine.  It reruns up to ``N`` finished
-cells of a study (those ``--only`` selects, in the grid's order) in this process on one torch
-thread, compares every number of the new result with the record (wall-clock entries aside),
-and writes nothing.  Each row says whether the cell came out identical and, if not, how many
-numbers differ, the first of them and the largest difference.
+cells of a study (those ``--only`` matches, learners before the reference cells) one at a
+time in a fresh process with a sweep worker's environment (one thread for torch, OpenMP and
+MKL; the budget), compares every number of the new result and every array of its mode
+features with the record (wall-clock entries aside), and writes nothing.  Each row says
+whether the cell came out identical and, if not, how many numbers differ, the first of them
+and the one that differs most relative to its size.
 
 How to read a difference: a record keeps the ``platform`` it was computed on (CPU, vector
 unit, library versions; records older than 2026-12-03 have none).  On the same platform a
-difference means the code changed the cell's numbers.  On another platform it is expected:
-NumPy, PyTorch and MuJoCo choose their vector kernels at run time, so float rounding differs
-in the last bits, and a learner turns that into another trajectory.  The cell is then another
+difference means the code changed the cell's numbers (``dc-lesson`` then exits with status
+1).  On another platform it is expected: NumPy's and PyTorch's kernels are chosen for the
+CPU at run time, so float rounding differs in the last bits, and a learner turns that into
+another trajectory.  The cell is then another
 sample of the same experiment, which the verdicts, built on the spread over seeds, allow for.
 """
 
 from __future__ import annotations
 
-import json
+import concurrent.futures
 import math
+import multiprocessing
+import os
+
+import numpy as np
 
 from dc_lesson import budget as _budget, storage
 from dc_lesson.experiments import cells as _cells, studies, sweep as _sweep
+
+# what "the same platform" compares: the machine and the numerical libraries
+PLATFORM_KEYS = ("cpu", "torch_cpu_capability", "numpy", "torch", "mujoco")
 
 
 def differences(stored, new, path: str = "") -> list[tuple[str, object, object]]:
@@ -59,31 +69,55 @@ def _largest(diffs) -> tuple[str, float, float, float] | None:
     return best
 
 
+def _feature_differences(stored: dict, new: dict | None) -> list:
+    new = {k: np.asarray(v, np.float32) for k, v in (new or {}).items()}   # as recorded
+    return [(f"features/{k}", "array", "array") for k in sorted(set(stored) | set(new))
+            if k not in stored or k not in new or not np.array_equal(stored[k], new[k])]
+
+
+def _in_a_worker(cell, needs, b: _budget.Budget) -> dict:
+    """:func:`sweep.execute` in a fresh process with a sweep worker's environment."""
+    saved = dict(os.environ)
+    os.environ.update(_sweep._ray_env(b))
+    try:
+        with concurrent.futures.ProcessPoolExecutor(
+                1, mp_context=multiprocessing.get_context("spawn")) as pool:
+            return pool.submit(_sweep.execute, cell, needs).result()
+    finally:
+        os.environ.clear()
+        os.environ.update(saved)
+
+
 def recheck(study_name: str, b: _budget.Budget, only=(), limit: int = 3, root=None,
             log=print) -> list[dict]:
-    """Reruns up to ``limit`` finished cells of ``study_name`` (the ``only`` selection) and
+    """Reruns up to ``limit`` finished cells of ``study_name`` that ``only`` matches and
     compares them with their records: one row per cell."""
     study = studies.get(study_name)
-    chosen = _sweep.select(study.grid(b), only)
-    needed = {n.name for c in chosen for n in c.needs} if only else set()
-    # the selection's own cells, not the references select() adds for a sweep to run first
-    done = [c for c in chosen if c.name not in needed and _cells.is_done(c, root)]
+    chosen = _sweep.select(study.grid(b), only, with_needs=False)
+    done = sorted((c for c in chosen if _cells.is_done(c, root)),
+                  key=lambda c: c.stage == 0)      # learners first, references last
     if not done:
         raise _sweep.SweepError(f"no finished cell of {study_name} matches; --recheck reruns "
                                 "cells a sweep has finished (see --dry-run)")
     here = storage.platform_info()
     rows = []
     for cell in done[:limit]:
-        record, _ = _cells.load(cell, root)
-        out = _sweep.execute(cell, [_cells.load(n, root) for n in cell.needs])
-        new, _ = _cells.split_timing(json.loads(storage.dumps_standard(out["result"])))
-        diffs = differences(record["result"], new)
+        missing = [n.name for n in cell.needs if not _cells.is_done(n, root)]
+        if missing:
+            raise _sweep.SweepError(f"{cell.name} reads {', '.join(missing)}, which has no "
+                                    f"record; run dc-lesson sweep {study_name} first")
+        record, features = _cells.load(cell, root)
+        out = _in_a_worker(cell, [_cells.load(n, root) for n in cell.needs], b)
+        new, _ = _cells.record_form(out["result"])
+        diffs = (differences(record["result"], new)
+                 + _feature_differences(features, out["features"]))
         then = record["provenance"].get("platform")
         row = {"cell": f"{cell.study}/{cell.task}/{cell.name}", "identical": not diffs,
                "numbers_differing": len(diffs), "largest": _largest(diffs),
                "first": None if not diffs else f"{diffs[0][0]}: {diffs[0][1]} -> {diffs[0][2]}",
                "recorded_on": (then or {}).get("torch_cpu_capability", "not recorded"),
-               "same_platform": None if then is None else then == here,
+               "same_platform": None if then is None else
+               all(then.get(k) == here.get(k) for k in PLATFORM_KEYS),
                "seconds": out["wall_seconds"]}
         rows.append(row)
         log(format_row(row))
@@ -104,4 +138,4 @@ def format_row(row: dict) -> str:
     return f"{row['cell']}: {verdict} [{where}; {row['seconds']:.0f} s]"
 
 
-__all__ = ["differences", "format_row", "recheck"]
+__all__ = ["PLATFORM_KEYS", "differences", "format_row", "recheck"]

@@ -45,9 +45,9 @@ class SweepError(ValueError):
     """A sweep that cannot start (unknown study, bad ``--only``, unwritable folder)."""
 
 
-def select(grid: list[_cells.Cell], only=()) -> list[_cells.Cell]:
+def select(grid: list[_cells.Cell], only=(), with_needs: bool = True) -> list[_cells.Cell]:
     """The cells matching every ``k=v`` of ``only`` (``v`` may list values: ``seed=0,1``),
-    with the cells they need."""
+    with the cells they need (unless ``with_needs`` is False)."""
     wanted: dict[str, set[str]] = {}
     for item in only or ():
         key, sep, value = item.partition("=")
@@ -59,6 +59,8 @@ def select(grid: list[_cells.Cell], only=()) -> list[_cells.Cell]:
         return list(grid)
     keep = [c for c in grid
             if all(str(getattr(c, k)) in v for k, v in wanted.items())]
+    if not with_needs and keep:
+        return keep
     out: dict[str, _cells.Cell] = {}
     for c in keep:
         for n in c.needs:

@@ -37,14 +37,17 @@ _ACTIVATIONS = {
 
 
 def enabled() -> bool:
-    """Whether rollouts use the NumPy forward pass (the default)."""
+    """Whether the fast paths are on (the default): rollouts through the NumPy forward pass,
+    fused optimisers, and PPO's update on a batch normalised once (``ppo.ppo_update``)."""
     return _ENABLED
 
 
 @contextlib.contextmanager
 def disabled():
-    """Within the block, rollouts call the torch modules and new VecEnvs step their copies one
-    by one (the path before issue 14)."""
+    """Within the block, rollouts call the torch modules, new VecEnvs step their copies one by
+    one, new optimisers are not fused, and PPO's update builds a validated Normal on each
+    minibatch (the reference path the benchmarks and tests compare with; close to, not
+    exactly, the code before issue 14)."""
     global _ENABLED
     old, _ENABLED = _ENABLED, False
     try:

@@ -149,9 +149,9 @@ class GaussianPolicy(_Normalised):
         ``entropy().sum(-1)`` give: torch's Normal formulas in its order of operations, one
         ``scale`` tensor for all of them (so the same bits and the same gradients,
         ``tests/test_ppo.py``), without building a ``Normal`` per call, which on these small
-        networks costs more than its arithmetic.  PPO and BC call this once per minibatch
-        step; taking ``z`` lets PPO normalise a batch once (the normaliser is frozen during
-        an update) instead of once per minibatch and epoch.
+        networks costs more than its arithmetic.  PPO's update calls this once per minibatch
+        step; taking ``z`` lets it normalise a batch once (the normaliser is frozen during an
+        update) instead of once per minibatch and epoch.
         """
         mean = self.mean_net(z)
         scale = self.log_std.exp().expand_as(mean)
