@@ -437,7 +437,7 @@ def ppo_update(policy: GaussianPolicy, value_fn: ValueNetwork, optimizer: torch.
                 _, new_logp, entropy = policy.gaussian_terms(zp, act)
                 entropy = entropy.mean()
                 new_values = value_fn.value_of(zv)
-            elif gaussian:    # the path before issue 14: a validated Normal per minibatch
+            elif gaussian:    # the reference path (fast.disabled()): a validated Normal
                 dist = policy.distribution(zp)
                 new_logp = dist.log_prob(act).sum(-1)
                 entropy = dist.entropy().sum(-1).mean()

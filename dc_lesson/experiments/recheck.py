@@ -14,8 +14,8 @@ unit, library versions; records older than 2026-12-03 have none).  On the same p
 difference means the code changed the cell's numbers (``dc-lesson`` then exits with status
 1).  On another platform it is expected: NumPy's and PyTorch's kernels are chosen for the
 CPU at run time, so float rounding differs in the last bits, and a learner turns that into
-another trajectory.  The cell is then another
-sample of the same experiment, which the verdicts, built on the spread over seeds, allow for.
+another trajectory.  The cell is then another sample of the same experiment, which the
+verdicts, built on the spread over seeds, allow for.
 """
 
 from __future__ import annotations
