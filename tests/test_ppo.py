@@ -154,6 +154,40 @@ def test_gaussian_terms_equal_torch_normal_bit_for_bit_values_and_gradients():
     assert pi.gaussian_terms(pi.normalise(obs), act, entropy=False)[2] is None
 
 
+def _update_before_the_change(policy, value_fn, optimizer, batch, config, generator,
+                              extra_loss=None):
+    """``ppo_update``'s minibatch loop as it was before it normalised the batch once
+    (commit 1a1c022): index every tensor per minibatch, build a Normal per step."""
+    from dc_lesson.nn import fast
+    obs = batch.obs.reshape(-1, batch.obs.shape[-1])
+    actions = batch.actions.reshape(-1, batch.actions.shape[-1])
+    old_logp, old_values = batch.logprobs.reshape(-1), batch.values.reshape(-1)
+    advantages, targets = batch.advantages.reshape(-1), batch.returns.reshape(-1)
+    n = len(obs)
+    size = n // config.n_minibatches
+    for _ in range(config.n_epochs):
+        order = torch.randperm(n, generator=generator)
+        for start in range(0, n, size):
+            idx = order[start:start + size]
+            dist = policy.distribution(obs[idx])
+            new_logp = dist.log_prob(actions[idx]).sum(-1)
+            entropy = dist.entropy().sum(-1).mean()
+            adv = advantages[idx]
+            adv = (adv - adv.mean()) / (adv.std() + 1e-8)
+            pg_loss, _, _ = ppo.clipped_surrogate(new_logp, old_logp[idx], adv,
+                                                  config.clip_coef)
+            v_loss = ppo.value_loss(value_fn(obs[idx]), old_values[idx], targets[idx],
+                                    config.clip_coef if config.clip_vloss else None)
+            loss = pg_loss - config.ent_coef * entropy + config.vf_coef * v_loss
+            if extra_loss is not None:
+                loss = loss + extra_loss()
+            optimizer.zero_grad()
+            loss.backward()
+            fast.clip_grad_norm_(policy.parameters(), config.max_grad_norm)
+            fast.clip_grad_norm_(value_fn.parameters(), config.max_grad_norm)
+            optimizer.step()
+
+
 def test_the_fast_ppo_update_equals_the_reference_path_bit_for_bit():
     """The fast path normalises the batch once and skips Normal; the reference path
     (``fast.disabled()``, as before issue 14) normalises every minibatch and validates a
@@ -187,6 +221,20 @@ def test_the_fast_ppo_update_equals_the_reference_path_bit_for_bit():
     assert fast_terms == ref_terms
     assert all(torch.equal(a, b) for a, b in zip(fast_params, ref_params))
     assert not all(torch.equal(a, b) for a, b in zip(fast_params, other_params))
+
+    # and against the loop as it was, with value clipping and a proximal term on every
+    # parameter (DC's consensus ADMM adds one) in play
+    config = dataclasses.replace(config, clip_vloss=True)
+    out = []
+    for update in (ppo.ppo_update, _update_before_the_change):
+        p, q = copy.deepcopy(pi), copy.deepcopy(v)
+        anchor = [t.detach().clone() + 0.01 for t in p.parameters()]
+        opt = fast.adamw([*p.parameters(), *q.parameters()], lr=3e-3, eps=1e-5)
+        update(p, q, opt, batch, config, torch.Generator().manual_seed(0),
+               extra_loss=lambda: sum(((a - b) ** 2).sum() for a, b in zip(p.parameters(),
+                                                                            anchor)))
+        out.append([t.detach().clone() for t in (*p.parameters(), *q.parameters())])
+    assert all(torch.equal(a, b) for a, b in zip(*out))
 
 
 def test_seed_stream_continues_episode_seeds():

@@ -133,7 +133,7 @@ def format_row(row: dict) -> str:
                    f"{b:.6g} ({100 * rel:.2g}% of it)")
     else:
         verdict = f"{row['numbers_differing']} entries differ (first {row['first']})"
-    where = {True: "same platform", False: "another platform",
+    where = {True: "same platform", False: f"another platform ({row['recorded_on']})",
              None: "platform not recorded"}[row["same_platform"]]
     return f"{row['cell']}: {verdict} [{where}; {row['seconds']:.0f} s]"
 
