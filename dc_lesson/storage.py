@@ -58,9 +58,9 @@ def git_revision() -> str:
 def platform_info() -> dict:
     """What a number depends on beyond the seed: the CPU and its vector instructions and the
     numerical libraries' versions.  A cell or benchmark records it because the same seed gives
-    the same bits only on the same kind of machine: NumPy, PyTorch and MuJoCo choose their
-    SIMD kernels at run time (AVX2, AVX-512, ...), whose float rounding differs, and an RL run
-    amplifies a last-bit difference into a different trajectory.  Across machines a cell is
+    the same bits only on the same kind of machine: NumPy and PyTorch choose their kernels for
+    the CPU at run time (AVX2, AVX-512, ...), whose float rounding differs, and an RL run
+    amplifies a last-bit difference into a different trajectory (README, Sweeps).  Across machines a cell is
     another sample of the same experiment, not the same numbers."""
     import platform as _platform
 

@@ -434,7 +434,7 @@ def ppo_update(policy: GaussianPolicy, value_fn: ValueNetwork, optimizer: torch.
         for start in range(0, n, size):
             zp, zv, act, olp, ov, adv, tg = (x[start:start + size] for x in shuffled)
             if fast_path:
-                _, new_logp, entropy = policy.gaussian_terms(zp, act)
+                new_logp, entropy = policy.log_prob_entropy(zp, act)
                 entropy = entropy.mean()
                 new_values = value_fn.value_of(zv)
             elif gaussian:    # the reference path (fast.disabled()): a validated Normal

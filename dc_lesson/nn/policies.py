@@ -140,26 +140,24 @@ class GaussianPolicy(_Normalised):
         return torch.distributions.Normal(mean, self.log_std.exp().expand_as(mean),
                                           validate_args=not fast.enabled())
 
-    def gaussian_terms(self, z: torch.Tensor, act: torch.Tensor, entropy: bool = True):
-        """``(mean, log pi(act | s), entropy of pi(. | s))`` for inputs ``z = normalise(obs)``,
-        the last two summed over the action dimensions (shape (B,)); the entropy is None
-        unless asked for.
+    def log_prob_entropy(self, z: torch.Tensor, act: torch.Tensor):
+        """``(log pi(act | s), entropy of pi(. | s))``, each summed over the action dimensions
+        (shape (B,)), for inputs ``z = normalise(obs)``.
 
-        What ``distribution(obs)``'s ``mean``, ``log_prob(act).sum(-1)`` and
-        ``entropy().sum(-1)`` give: torch's Normal formulas in its order of operations, one
-        ``scale`` tensor for all of them (so the same bits and the same gradients,
-        ``tests/test_ppo.py``), without building a ``Normal`` per call, which on these small
-        networks costs more than its arithmetic.  PPO's update calls this once per minibatch
-        step; taking ``z`` lets it normalise a batch once (the normaliser is frozen during an
-        update) instead of once per minibatch and epoch.
+        What ``distribution(obs).log_prob(act).sum(-1)`` and ``.entropy().sum(-1)`` give:
+        torch's Normal formulas in its order of operations, one ``scale`` tensor for both (so
+        the same bits and the same gradients, ``tests/test_ppo.py``), without building a
+        ``Normal`` per call, which on these small networks costs more than its arithmetic.
+        PPO's update calls this once per minibatch step; taking ``z`` lets it normalise a
+        batch once (the normaliser is frozen during an update), not once per minibatch.
         """
         mean = self.mean_net(z)
         scale = self.log_std.exp().expand_as(mean)
         var = scale ** 2
         log_scale = scale.log()
         logp = -((act - mean) ** 2) / (2 * var) - log_scale - _LOG_SQRT_2PI
-        ent = (0.5 + 0.5 * math.log(2 * math.pi) + torch.log(scale)).sum(-1) if entropy else None
-        return mean, logp.sum(-1), ent
+        entropy = 0.5 + 0.5 * math.log(2 * math.pi) + torch.log(scale)
+        return logp.sum(-1), entropy.sum(-1)
 
     def log_prob(self, obs: torch.Tensor, act: torch.Tensor) -> torch.Tensor:
         """log pi(act | obs), summed over the action dimensions: shape (B,)."""
@@ -206,7 +204,7 @@ class ValueNetwork(_Normalised):
         return self.net(self.normalise(obs)).squeeze(-1)
 
     def value_of(self, z: torch.Tensor) -> torch.Tensor:
-        """Values for inputs ``z = normalise(obs)`` (see ``GaussianPolicy.gaussian_terms``)."""
+        """Values for inputs ``z = normalise(obs)`` (see ``GaussianPolicy.log_prob_entropy``)."""
         return self.net(z).squeeze(-1)
 
 

@@ -1,8 +1,8 @@
 """Does a cheaper density fit change what DC learns: ``dc-lesson perf dc-fit`` (issue 14).
 
-DC's time goes to fitting SoftFlow (``perf learners``: most of a run), and ``perf flow-fit``
-found a fit at rk4 step 0.5 (two solver steps instead of four) about 2.4x cheaper with a
-held-out likelihood no worse.  A cheaper fit still changes every number of a DC run, so the
+Fitting SoftFlow is the largest part of a DC run (about a third of a lesson run on reacher4),
+and ``perf flow-fit`` finds a fit at rk4 step 0.5 (two solver steps instead of four) about
+twice as cheap with a held-out likelihood no worse.  A cheaper fit still changes every number of a DC run, so the
 question before making it the default is the issue's own: does a whole DC run at the lesson
 budget stay within its seed spread?  This benchmark answers it without touching a stored
 grid: per seed, one BC warm start (as every study's), then DC twice from it, today's fit and
