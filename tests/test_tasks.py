@@ -185,6 +185,72 @@ def test_each_reacher_target_is_rewarded_and_classified(k):
     assert env.task.get_reward(env.physics) == 0.0
 
 
+def _edge_values(rng):
+    """Values a tolerance must get right: both signs of zero, the bounds and margins, just
+    inside and outside them, infinities, NaN, and plenty of ordinary numbers."""
+    special = [0.0, -0.0, 1.0, -1.0, 2.0, -2.0, 5.0, 10.0, -10.0, 20.0, np.nextafter(10.0, 0),
+               np.nextafter(1.0, 0), np.nextafter(1.0, 2), 1e-300, -1e-300, np.inf, -np.inf,
+               np.nan]
+    return np.concatenate([rng.normal(0, s, 4000) for s in (0.01, 1.0, 5.0, 30.0)]
+                          + [np.array(special)])
+
+
+def test_the_ports_tolerances_are_dm_controls_to_the_bit():
+    """base's three tolerances are dm_control's ``rewards.tolerance`` in the forms the ports
+    call it, float for float (a stored run's rewards must not move)."""
+    from dm_control.utils import rewards
+    from dc_lesson.tasks import base
+    x = _edge_values(np.random.default_rng(0))
+    with np.errstate(invalid="ignore", over="ignore"):   # inf - inf inside dm_control's
+        for margin in (2, 5):
+            np.testing.assert_array_equal(base.gaussian_tolerance(x, margin),
+                                          rewards.tolerance(x, margin=margin))
+        np.testing.assert_array_equal(
+            base.quadratic_tolerance(x),
+            rewards.tolerance(x, margin=1, value_at_margin=0, sigmoid="quadratic"))
+        np.testing.assert_array_equal(
+            base.linear_tolerance_above(x, 10.0, 10.0),
+            rewards.tolerance(x, bounds=(10.0, float("inf")), margin=10.0, value_at_margin=0,
+                              sigmoid="linear"))
+
+
+@pytest.mark.parametrize("k", [1, 4])
+def test_reacher_outputs_are_the_suite_style_expressions_to_the_bit(k):
+    """The reacher's interleaved (cos, sin) and its indicator reward against the expressions
+    they replace (np.stack of four calls; the tolerance of the norm), with fingertips exactly
+    on a target's edge and a hair inside and outside it."""
+    from dm_control.utils import rewards
+    from dc_lesson.tasks.base import Batch
+    env = tasks.make(f"reacher{k}", seed=0)
+    task, model = env.task, env.physics.model.ptr
+    ids = task.ids(model)
+    rng = np.random.default_rng(k)
+    n = 512
+    b = Batch.__new__(Batch)
+    b.ids = ids
+    b.qpos = rng.uniform(-40, 40, (n, 2))
+    b.qvel = rng.normal(0, 3, (n, 2))
+    b.geom_xpos = np.zeros((n, model.ngeom, 3))
+    for i, g in enumerate(ids["targets"]):
+        b.geom_xpos[:, g, :2] = reacher.target_positions(k)[i]
+    # fingertips at the edge of target 0 (and just off it), and anywhere
+    angle = rng.uniform(0, 2 * np.pi, n)
+    radius = np.where(np.arange(n) % 4 == 0, ids["radii"],
+                      np.where(np.arange(n) % 4 == 1, np.nextafter(ids["radii"], 1),
+                               rng.uniform(0, 0.3, n)))
+    tip = reacher.target_positions(k)[0] + radius[:, None] * np.stack(
+        [np.cos(angle), np.sin(angle)], axis=1)
+    b.geom_xpos[:, ids["finger"], :2] = tip
+    q = b.qpos
+    want = np.stack([np.cos(q[:, 0]), np.sin(q[:, 0]), np.cos(q[:, 1]), np.sin(q[:, 1])], axis=1)
+    np.testing.assert_array_equal(task.batch_observation(b)["position"], want)
+    to_targets = b.geom_xpos[:, ids["targets"], :2] - tip[:, None]
+    want_r = rewards.tolerance(np.linalg.norm(to_targets, axis=2), (0, ids["radii"])).max(axis=1)
+    got_r = task.batch_reward(b)
+    np.testing.assert_array_equal(got_r, want_r)
+    assert 0 < got_r.mean() < 1   # both sides of the edge were tried
+
+
 def test_reacher_targets_are_not_observed():
     """Two reachers with different targets observe the same numbers for the same arm state."""
     a, b = tasks.make("reacher1", seed=0), tasks.make("reacher4", seed=0)

@@ -202,7 +202,7 @@ class EnvBatch:
         horizon: what the task pays, as a fallen hopper earns nothing more).
         """
         actions = self.venv.check_actions(actions)
-        next_obs, rewards, _, done = self.venv.step(actions)
+        next_obs, rewards, _, done = self.venv.step(actions, checked=True)
         done = done or self.venv.t >= self.episode_steps
         self.episode_actions.append(actions)
         self.episode_return += rewards

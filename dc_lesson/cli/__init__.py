@@ -106,6 +106,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="learners: timed runs per path (default 2)")
     s.add_argument("--seeds", type=positive_int, default=None,
                    help="dc-fit: seeds, each a BC start and two DC runs (default 5)")
+    s.add_argument("--before", default=None, metavar="REVISION",
+                   help="runs: the earlier revision to time against today's (default: "
+                        "7445a95, where issue 14 began)")
     s.set_defaults(func=cmd_perf)
     s = sub.add_parser("sweep", help="run a study's cells on Ray (skips finished cells)")
     s.add_argument("study", help="a study of dc_lesson.experiments.studies (bc_demos, ...), "

@@ -10,7 +10,7 @@ import shlex
 import sys
 
 # The options of ``perf``, by the name argparse gives them.
-OPTIONS = {"tasks": "--tasks", "steps": "--steps", "seeds": "--seeds"}
+OPTIONS = {"tasks": "--tasks", "steps": "--steps", "seeds": "--seeds", "before": "--before"}
 
 
 class UsageError(ValueError):

@@ -19,6 +19,8 @@ PERFS = {
                  {"tasks"}),
     "dc-fit": ("whole DC runs with today's density fit and the cheaper one, paired by seed",
                {"tasks", "seeds"}),
+    "runs": ("whole lesson runs of each learner: an earlier revision's code against today's",
+             {"tasks", "before"}),
 }
 
 
@@ -145,6 +147,11 @@ def cmd_perf(args) -> int:
         from dc_lesson.perf import learners as perf_learners
         perf_learners.main(args.tasks or None, args.learners or None, repeats=args.repeats,
                            out=args.out, command=command_line())
+        return 0
+    if args.what == "runs":
+        from dc_lesson.perf import runs as perf_runs
+        perf_runs.main(args.before, args.tasks or None, args.learners or None,
+                       repeats=args.repeats, out=args.out, command=command_line())
         return 0
     if args.what == "softflow":
         from dc_lesson.perf import softflow as perf_softflow

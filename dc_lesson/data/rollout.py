@@ -208,7 +208,7 @@ def collect(task: str, policy: Policy, n_episodes: int, seed: int = 0, *,
             a = a.reshape(B, spec.act_dim)
             # Round to float32 before applying, so the stored action replays exactly.
             acts[:, t] = venv.check_actions(a)
-            obs[:, t + 1], rews[:, t], feats[:, t + 1], _ = venv.step(acts[:, t])
+            obs[:, t + 1], rews[:, t], feats[:, t + 1], _ = venv.step(acts[:, t], checked=True)
             if bar is not None:
                 bar.update(B)
         for b in range(B):

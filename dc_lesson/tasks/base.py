@@ -123,10 +123,11 @@ class PortTask(suite_base.Task):
 
     def outputs_of(self, b: Batch, n: int):
         """:meth:`outputs` of a gathered batch of ``n`` environments."""
-        obs = np.concatenate([v.reshape(n, -1)
-                              for v in self.batch_observation(b).values()], axis=1)
+        # cast to float32 as it is concatenated (one copy, the same rounding as astype)
+        obs = np.concatenate([v.reshape(n, -1) for v in self.batch_observation(b).values()],
+                             axis=1, dtype=np.float32)
         # fresh arrays: a batch may view live simulation memory that the next step rewrites
-        return (obs.astype(np.float32), np.array(self.batch_reward(b), dtype=np.float64),
+        return (obs, np.array(self.batch_reward(b), dtype=np.float64),
                 np.array(self.batch_mode_feature(b), dtype=np.float32))
 
     # dm_control's per-environment interface, as a batch of one.
@@ -168,6 +169,33 @@ def sensor_slice(model, name: str) -> slice:
     i = name_id(model, "sensor", name)
     adr = model.sensor_adr[i]
     return slice(adr, adr + model.sensor_dim[i])
+
+
+# dm_control's ``rewards.tolerance`` in the three forms the ports use, as the same NumPy
+# expressions without its argument checks and the ``np.where``s that only pick 1.0 at a single
+# point: on a batch of 16 the tolerance's calls were most of a one-substep task's outputs.  Each
+# returns the same floats as ``tolerance`` (tests/test_tasks.py, edge cases included).
+_GAUSSIAN_AT_01 = np.sqrt(-2 * np.log(0.1))   # tolerance's gaussian scale, 0.1 at the margin
+
+
+def gaussian_tolerance(x, margin: float) -> np.ndarray:
+    """``tolerance(x, bounds=(0, 0), margin=margin)``: the gaussian sigmoid of |x| / margin
+    (1 at x = 0, as the bounds give)."""
+    d = np.abs(x) / margin
+    return np.exp(-0.5 * (d * _GAUSSIAN_AT_01) ** 2)
+
+
+def quadratic_tolerance(x) -> np.ndarray:
+    """``tolerance(x, bounds=(0, 0), margin=1, value_at_margin=0, sigmoid="quadratic")``."""
+    d = np.abs(x)
+    return np.where(d < 1, 1 - d ** 2, 0.0)
+
+
+def linear_tolerance_above(x, lower: float, margin: float) -> np.ndarray:
+    """``tolerance(x, bounds=(lower, inf), margin=margin, value_at_margin=0,
+    sigmoid="linear")``: 1 from ``lower`` up, falling linearly to 0 ``margin`` below it."""
+    d = (lower - x) / margin
+    return np.where(x >= lower, 1.0, np.where(d < 1, 1 - d, 0.0))
 
 
 def step_physics(model, data, n_sub_steps: int) -> None:

@@ -175,12 +175,18 @@ class VecEnv:
         # np.clip's value, without its Python wrapper (called twice per step of a rollout)
         return np.minimum(np.maximum(a, self.action_low), self.action_high)
 
-    def step(self, actions) -> tuple[np.ndarray, np.ndarray, np.ndarray, bool]:
+    def step(self, actions, *, checked: bool = False
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray, bool]:
         """One control step of every running episode: (observations, rewards, mode features,
-        done); ``done`` is True at the horizon, after which ``reset`` is needed."""
+        done); ``done`` is True at the horizon, after which ``reset`` is needed.
+
+        ``checked=True``: the actions are what :meth:`check_actions` returned this step
+        (the rollout loops check them once, keep them, then step), so they are not checked
+        and clipped a second time."""
         if self.n_active == 0 or self.t >= self.spec.horizon:
             raise RuntimeError("call reset() before step(): the episodes are over or not started")
-        a = self.check_actions(actions)
+        # float64 as check_actions returns it (a task's step hook may compute with it)
+        a = np.asarray(actions, np.float64) if checked else self.check_actions(actions)
         n = self.n_active
         if self._batch is None:
             for env, ai in zip(self.envs[:n], a):

@@ -1,0 +1,45 @@
+"""``dc-lesson perf runs``: whole lesson runs of an earlier revision's code against today's.
+The earlier code really is the one that runs (its own package, in a fresh process), the two
+trees must do the same work, and bad revisions or learners are refused with the fix."""
+
+import pathlib
+import subprocess
+
+import pytest
+
+from dc_lesson.perf import runs
+
+ROOT = pathlib.Path(runs.__file__).resolve().parents[2]
+needs_git = pytest.mark.skipif(
+    subprocess.run(["git", "-C", str(ROOT), "rev-parse", "HEAD"], capture_output=True
+                   ).returncode != 0, reason="not a git checkout")
+
+
+def test_same_work_names_a_changed_setting_and_skips_settings_the_old_code_lacked():
+    before = {"lr": 1e-3, "ppo": {"n_envs": 8, "clip": 0.2}}
+    now = {"lr": 1e-3, "ppo": {"n_envs": 16, "clip": 0.2, "terminate": None}, "new": 1}
+    assert runs.same_work(before, now) == ["ppo.n_envs: 8 before, 16 today"]
+    assert runs.same_work(before, {**before, "new": 1}) == []
+
+
+@needs_git
+def test_an_unknown_revision_is_refused_with_the_fix(tmp_path, monkeypatch):
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
+    with pytest.raises(runs.RevisionError, match="no revision 'no-such-thing'.*7445a95"):
+        runs.extract("no-such-thing")
+
+
+def test_a_learner_it_does_not_time_is_refused():
+    with pytest.raises(ValueError, match="not gpril"):
+        runs.benchmark("HEAD", tasks=("reacher1",), learners=("gpril",), repeats=1)
+
+
+@needs_git
+def test_a_run_imports_the_package_of_the_extracted_revision(tmp_path, monkeypatch):
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
+    tree = runs.extract("HEAD")
+    assert tree.is_relative_to(tmp_path) and (tree / "dc_lesson" / "__init__.py").exists()
+    assert runs.extract("HEAD") == tree          # extracted once, then reused
+    out = runs.run_in(tree, "bc", "reacher1")
+    assert pathlib.Path(out["package"]).resolve().is_relative_to(tree.resolve())
+    assert out["config"]["epochs"] == 20 and out["seconds"] > 0
