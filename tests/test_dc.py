@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 import torch
 
+from dc_lesson import budget
 from dc_lesson.algorithms import bc, dc, ppo
 from dc_lesson.nn import fast
 from dc_lesson.nn.policies import PolicyFileError
@@ -242,3 +243,25 @@ def test_the_preset_spends_the_budgets_interactions():
         assert b.il_steps - c.loops * c.batch_size < spent <= b.il_steps, name
     assert dc.preset(budget.get("lesson"), loops=4).iterations * 4 * \
         dc.DCConfig().batch_size <= budget.get("lesson").il_steps
+
+
+def test_the_solver_steps_are_settings_that_leave_the_stored_runs_configs_alone():
+    """``flow_step`` and ``reward_step`` reach the fit and the reward; at 0.25 (what every
+    stored run used) they stay out of the JSON, so a stored cell's config and hash do not
+    move; another value is in the JSON (a new run, a new cell)."""
+    import json as _json
+    from dc_lesson.experiments import cells as _cells
+    from dc_lesson.experiments.studies import _imitation as _im, table3 as _t3
+    b = budget.get("lesson")
+    record = _json.loads(next((_cells.cells_root() / "table3" / "hopper").glob(
+        "dc__n4__s0__*.json")).read_text())
+    today = _t3.learner_config("dc", b, "hopper", 0)
+    assert _im.without_seed(_json.loads(today.to_json())) == record["config"]["dc"]
+    assert not set(dc.REFERENCE_STEPS) & set(_json.loads(today.to_json()))
+    cheaper = dataclasses.replace(today, flow_step=0.5, reward_step=0.5)
+    assert {k: _json.loads(cheaper.to_json())[k] for k in dc.REFERENCE_STEPS} == {
+        "flow_step": 0.5, "reward_step": 0.5}
+    flow = cheaper.flow_config()
+    assert (flow.step_size, flow.eval_step_size) == (0.5, 0.5)
+    with pytest.raises(ValueError, match="reward_step"):
+        dataclasses.replace(today, reward_step=0.0)

@@ -27,14 +27,25 @@ def test_each_variant_fits_with_its_own_solver_step_and_the_reward_keeps_todays(
     assert seen == [(0.25, 0.25), (0.5, 0.25), (0.5, 0.25), (0.25, 0.25)]
     assert [set(r) for r in result["rows"]] == [{"seed", "today", "cheaper"}] * 2
     assert result["summary"]["time_ratio"] > 0
+    seen.clear()
+    dc_fit.run("reacher1", seeds=[0], b=budget.get("smoke"), n_episodes=2, log=lambda s: None,
+               variant="fit+reward")
+    assert seen == [(0.25, 0.25), (0.5, 0.5)]     # the reward's step changes too
 
 
-def test_the_variant_is_todays_config_but_for_the_fit():
+@pytest.mark.parametrize("variant", list(dc_fit.VARIANTS))
+def test_each_variant_is_todays_config_but_for_its_solver_steps(variant):
     today = dc.preset(budget.get("lesson"), 3)
-    cheaper = dc_fit.CheaperFit(**{f.name: getattr(today, f.name)
-                                   for f in dataclasses.fields(today)})
-    assert cheaper.to_json() == today.to_json()       # the same run in every other respect
-    assert dataclasses.replace(cheaper.flow_config(), step_size=0.25) == today.flow_config()
+    cheaper = dataclasses.replace(today, **dc_fit.VARIANTS[variant])
+    assert dataclasses.replace(cheaper, **dc.REFERENCE_STEPS) == today
+    want = dict(dc.REFERENCE_STEPS, **dc_fit.VARIANTS[variant])
+    flow = cheaper.flow_config()
+    assert (flow.step_size, flow.eval_step_size) == (want["flow_step"], want["reward_step"])
+
+
+def test_an_unknown_variant_is_refused_with_the_choices():
+    with pytest.raises(ValueError, match="fit, fit\\+reward; not 'reward'"):
+        dc_fit.main(["reacher1"], seeds=[0], variant="reward")
 
 
 def _rows(today, cheaper):

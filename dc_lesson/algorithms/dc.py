@@ -82,7 +82,10 @@ The paper's averaging is this with u = 0 and x_i reset to z each iteration.
 * *Learning rates*: one ``lr`` for both copies' AdamW (the paper's appendix: 1e-4 with gradient
   clip 0.1, for 1,000 iterations; at our smaller budgets 3e-4 and PPO's clip of 0.5).
 * *P_w*: SoftFlow with the library's defaults except a fixed-step rk4 training solver (several
-  times cheaper than dopri5, and the reward is evaluated with rk4 too); fitted on up to
+  times cheaper than dopri5, and the reward is evaluated with rk4 too), both at step 0.25
+  (``flow_step``, ``reward_step``; every stored run used 0.25; 0.5 makes a lesson run on
+  reacher4 about 1.2x faster, and ``dc-lesson perf dc-fit`` measures what it does to learning);
+  fitted on up to
   ``flow_states`` expert states in loop 0 (``flow_iterations`` steps), refitted in later loops on
   the same number of expert and learner states each (``flow_refit_iterations`` steps, a fresh
   Adam; the standardisation stays the first fit's, so rewards stay comparable across loops).
@@ -141,6 +144,10 @@ _DC_PPO = PPOConfig(n_envs=8, n_steps=250, n_epochs=4, n_minibatches=8, clip_coe
                     anneal_lr=False)
 
 
+# The solver steps every stored DC run used (before they were settings); see to_json.
+REFERENCE_STEPS = {"flow_step": 0.25, "reward_step": 0.25}
+
+
 @dataclasses.dataclass(frozen=True)
 class DCConfig:
     """Every knob of DC.  See the module docstring for why each default is what it is."""
@@ -154,6 +161,10 @@ class DCConfig:
     flow_hidden: tuple[int, ...] = (64, 64, 64)   # SoftFlow's concat-squash widths
     flow_lr: float = 1e-3        # SoftFlow's Adam learning rate
     sigma_max: float = 0.1       # SoftFlow's noise range (standardised states)
+    flow_step: float = 0.25      # rk4 step of P_w's training solve (0.5: the fit about twice
+    #                              as cheap, held-out NLL no worse; dc-lesson perf flow-fit)
+    reward_step: float = 0.25    # largest rk4 step of log P_w's evaluation, the reward (0.5:
+    #                              about 0.73 of the cost, 0.015 nats mean error; perf flow-fit)
     # Algorithm 2
     update: str = "average"      # "average" (the paper) or "admm" (consensus ADMM with duals)
     rho: float = 1.0             # ADMM's penalty (update="admm" only)
@@ -178,8 +189,8 @@ class DCConfig:
 
     def __post_init__(self):
         check_fields(self, positive=("loops", "iterations", "flow_states", "flow_iterations",
-                                     "flow_lr", "sigma_max", "rho", "bc_steps", "bc_batch_size",
-                                     "lr", "max_grad_norm"),
+                                     "flow_lr", "sigma_max", "flow_step", "reward_step", "rho",
+                                     "bc_steps", "bc_batch_size", "lr", "max_grad_norm"),
                      non_negative=("flow_refit_iterations", "weight_decay", "seed"))
         if not isinstance(self.ppo, PPOConfig):
             raise TypeError(f"DCConfig.ppo must be a ppo.PPOConfig, got {type(self.ppo)}")
@@ -220,7 +231,8 @@ class DCConfig:
     def flow_config(self) -> _softflow.SoftFlowConfig:
         return _softflow.SoftFlowConfig(hidden=self.flow_hidden, sigma_max=self.sigma_max,
                                         lr=self.flow_lr, iterations=self.flow_iterations,
-                                        solver="rk4", step_size=0.25, seed=self.seed)
+                                        solver="rk4", step_size=self.flow_step,
+                                        eval_step_size=self.reward_step, seed=self.seed)
 
     def env_steps(self, task: str) -> int:
         """Environment interactions of a whole run: the policy batches plus the learner
@@ -232,6 +244,11 @@ class DCConfig:
     def to_json(self) -> str:
         d = dataclasses.asdict(self)
         d["ppo"] = json.loads(self.ppo_config().to_json())
+        # The solver steps became settings after the stored grids ran at 0.25: at that value
+        # they stay out of the JSON, so those runs' configs (and cell hashes) are unchanged.
+        for name in REFERENCE_STEPS:
+            if d[name] == REFERENCE_STEPS[name]:
+                del d[name]
         return json.dumps(d, sort_keys=True)
 
 
@@ -667,6 +684,6 @@ def _load_checkpoint(path, task, config, learner, generator, envs, disc=None):
     return int(ckpt["loop"]), int(ckpt["iteration"]), flow, scale, json.loads(ckpt["log"])
 
 
-__all__ = ["DCConfig", "DC_DEFAULTS", "preset", "Learner", "RewardScale", "admm_iteration", "average_into", "copy_into",
+__all__ = ["DCConfig", "DC_DEFAULTS", "REFERENCE_STEPS", "preset", "Learner", "RewardScale", "admm_iteration", "average_into", "copy_into",
            "expert_pairs", "flat", "make_learner", "policy_parameters", "sample_bc_pairs",
            "state_log_density", "train"]

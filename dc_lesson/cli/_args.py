@@ -10,7 +10,8 @@ import shlex
 import sys
 
 # The options of ``perf``, by the name argparse gives them.
-OPTIONS = {"tasks": "--tasks", "steps": "--steps", "seeds": "--seeds", "before": "--before"}
+OPTIONS = {"tasks": "--tasks", "steps": "--steps", "seeds": "--seeds", "before": "--before",
+           "variant": "--variant"}
 
 
 class UsageError(ValueError):

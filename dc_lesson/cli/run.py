@@ -17,8 +17,8 @@ PERFS = {
                  {"tasks"}),
     "flow-fit": ("DC's density fit under cheaper solvers: time against held-out NLL",
                  {"tasks"}),
-    "dc-fit": ("whole DC runs with today's density fit and the cheaper one, paired by seed",
-               {"tasks", "seeds"}),
+    "dc-fit": ("whole DC runs with today's density fit and a cheaper one, paired by seed",
+               {"tasks", "seeds", "variant"}),
     "runs": ("whole lesson runs of each learner: an earlier revision's code against today's",
              {"tasks", "before"}),
 }
@@ -141,7 +141,7 @@ def cmd_perf(args) -> int:
         if args.tasks is not None and len(args.tasks) != 1:
             raise UsageError("perf dc-fit runs on one task; give one name to --tasks")
         perf_dc_fit.main(args.tasks, seeds=range(args.seeds or 5), out=args.out,
-                         command=command_line())
+                         command=command_line(), variant=args.variant or "fit")
         return 0
     if args.what == "learners":
         from dc_lesson.perf import learners as perf_learners
