@@ -418,8 +418,25 @@ bench = read_result("bench_rollout.json")
 speed = pd.DataFrame(bench["rows"]).set_index("task")
 print(f"command: {bench['command']}   revision: {bench['revision'][:12]}   "
       f"budget: {bench['budget']}")
-speed[["physics steps per control step", "raw mj_step (ctrl steps/s)", "dm_control Environment",
-       "dc_lesson rollout", "rollout / raw", "rollout / dm_control"]].round(2)
+columns = ["physics steps per control step", "raw mj_step (ctrl steps/s)", "dm_control Environment",
+           "dc_lesson rollout", "rollout / raw", "rollout / dm_control"]
+if "rollout / EnvPool" in speed:   # EnvPool (C++ batched environments) where it was installed
+    columns += ["EnvPool", "rollout / EnvPool"]
+speed[columns].round(2)
+
+# %% [markdown]
+# How many copies should a batch hold? Each control step pays a fixed price (one call into
+# MuJoCo, one NumPy pass, one policy call) whatever the number of copies, so the ratio to raw
+# physics grows with the batch until the physics dominates. The same benchmark steps one
+# single-substep task with 1 to 64 copies. The library's evaluations and demonstrations step
+# 16 copies at a time (`rollout.collect`'s default); PPO, and the learners built on it,
+# collect with 8 (`PPOConfig.n_envs`), a choice about learning as much as speed: with a fixed
+# batch of interactions, more copies mean shorter stretches of each episode per update.
+
+# %%
+sweep = pd.DataFrame(bench["batch_sweep"]).set_index("batch")
+print(f"{sweep['task'].iloc[0]}: rollout / raw by environments per batch")
+sweep[["dc_lesson rollout", "rollout / raw"]].round(2).T
 
 # %% [markdown]
 # ## Summary

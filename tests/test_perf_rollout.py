@@ -31,3 +31,9 @@ def test_envpool_is_compared_where_it_is_installed(monkeypatch):
     assert np.isclose(row["rollout / EnvPool"], row["dc_lesson rollout"] / 1e9)
     text = perf_rollout.format_rows([row])
     assert "rollout/EnvPool" in text and "not installed" not in text
+
+
+def test_the_batch_sweep_gives_a_row_per_batch_with_its_ratio_to_raw():
+    rows = perf_rollout.batch_sweep("reacher1", batches=(1, 4), n_steps=80, repeats=1)
+    assert [r["batch"] for r in rows] == [1, 4]
+    assert all(r["dc_lesson rollout"] > 0 and 0 < r["rollout / raw"] < 10 for r in rows)

@@ -136,6 +136,24 @@ def rollout_benchmark(names=None, n_steps: int = 3000, batch: int = 16,
     return rows
 
 
+SWEEP_BATCHES = (1, 4, 8, 16, 32, 64)
+
+
+def batch_sweep(name: str = "reacher4", batches=SWEEP_BATCHES, n_steps: int = 8000,
+                repeats: int = 3) -> list[dict]:
+    """Control steps per second of the rollout path against the number of copies stepped in
+    lockstep, as a fraction of raw stepping (a one-substep task, where the per-call overhead
+    shows most): how many environments a batch needs before its fixed costs (one MuJoCo call,
+    one NumPy pass, one policy call per control step) stop mattering."""
+    out = []
+    for batch in batches:
+        runs = np.array([[_raw_steps_per_s(name, n_steps),
+                          _rollout_steps_per_s(name, n_steps, batch)] for _ in range(repeats)])
+        out.append({"task": name, "batch": batch, "dc_lesson rollout": float(np.median(runs[:, 1])),
+                    "rollout / raw": float(np.median(runs[:, 1] / runs[:, 0]))})
+    return out
+
+
 def format_rows(rows: list[dict]) -> str:
     pool = any("EnvPool" in r for r in rows)
     head = (f"{'task':<13}{'substeps':>9}{'raw/s':>10}{'dm_control/s':>14}{'rollout/s':>11}"
@@ -158,9 +176,14 @@ def format_rows(rows: list[dict]) -> str:
 def main(names=None, n_steps: int = 3000, out: str | None = None, command: str = "") -> list[dict]:
     rows = rollout_benchmark(names, n_steps)
     print(format_rows(rows))
+    sweep_task = next((n for n in (names or _tasks.NAMES) if n.startswith("reacher")), None)
+    sweep = batch_sweep(sweep_task, n_steps=n_steps) if sweep_task else []
+    if sweep:
+        print(f"{sweep_task}, rollout / raw by environments per batch: "
+              + ", ".join(f"{r['batch']}: {r['rollout / raw']:.2f}" for r in sweep))
     if out:
         write_result(out, {"benchmark": "rollout", "n_steps": n_steps, "rows": rows,
-                           "envpool": envpool_version(),
+                           "batch_sweep": sweep, "envpool": envpool_version(),
                            "machine": platform.processor() or platform.machine()},
                      command=command, seeds=[0])
     return rows
