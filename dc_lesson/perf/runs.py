@@ -189,8 +189,10 @@ def main(before=None, tasks=None, learners=None, repeats: int = 2, out=None,
     before = before or ISSUE_14
     rows = benchmark(before, tasks or TASKS, learners or LEARNERS, repeats)
     if out:
-        write_result(out, {"benchmark": "runs", "before": before, "rows": rows, "threads": 1},
-                     command=command, seeds=[0])
+        commit = subprocess.run(["git", "-C", str(_repo_root()), "rev-parse", before],
+                                capture_output=True, text=True).stdout.strip()
+        write_result(out, {"benchmark": "runs", "before": before, "before_commit": commit,
+                           "rows": rows, "threads": 1}, command=command, seeds=[0])
     return rows
 
 
