@@ -401,7 +401,9 @@ render.video(clips, fps=15)
 # what stepping each copy through dm_control gives (a test compares them over whole
 # episodes). The benchmark `dc-lesson perf rollout` times this
 # path against raw `mujoco.mj_step` on the same model (the ceiling: physics and nothing else)
-# and against dm_control's own `Environment.step`. Its stored result,
+# and against dm_control's own `Environment.step`, and, where the optional extra EnvPool (C++
+# batched environments of the same models) was installed when it ran, against EnvPool with as
+# many environments and one thread. Its stored result,
 # `data/results/bench_rollout.json`, records the command, machine and revision; a test checks
 # the two claims below against it.
 #
