@@ -16,7 +16,9 @@ trees alternate which goes first; the table gives medians, the ratio before / to
 environment steps per second including the updates.  BC runs a fixed 20 epochs (its early
 stopping would otherwise stop the two codes at different epochs); the others run their whole
 preset, the same work in both trees (the run prints each tree's config and the benchmark
-refuses a pair whose configs differ in anything but fields the older code lacks).
+refuses a pair whose configs differ in anything but fields the older code lacks).  On request,
+``dc-cheaper``: today's DC with the cheaper solver steps (``flow_step`` and ``reward_step``
+0.5, what ``perf dc-fit --variant fit+reward`` checks) against the earlier code's DC.
 """
 
 from __future__ import annotations
@@ -35,6 +37,9 @@ from dc_lesson.storage import check_writable, write_result
 
 TASKS = ("reacher4",)
 LEARNERS = ("bc", "ppo", "gail", "dc")
+# On request: DC with the cheaper solver steps where the code has them (flow_step and
+# reward_step 0.5, perf dc-fit's "fit+reward"), against the earlier code's only DC.
+EXTRA = ("dc-cheaper",)
 ISSUE_14 = "7445a95"   # the revision issue 14 was filed against
 
 # Runs in a fresh process, in either tree: only the interface both revisions share.
@@ -45,11 +50,15 @@ torch.set_num_threads(1)
 import dc_lesson
 from dc_lesson import algorithms, budget, data
 name, task = sys.argv[1], sys.argv[2]
+cheaper = name == "dc-cheaper"
+name = "dc" if cheaper else name
 b = budget.get("lesson")
 algo = algorithms.get(name)
 cfg = algo.preset(b, 0)
 if name == "bc":
     cfg = dataclasses.replace(cfg, epochs=20, patience=10 ** 6)
+if cheaper and hasattr(cfg, "reward_step"):   # code without the settings runs its only DC
+    cfg = dataclasses.replace(cfg, flow_step=0.5, reward_step=0.5)
 demos = data.load_demos(task, n_trajectories=b.il_demos) if algo.uses_demos else None
 start = None
 if name in ("gail", "dc"):
@@ -140,9 +149,10 @@ def same_work(before: dict, now: dict) -> list[str]:
 def benchmark(before: str = ISSUE_14, tasks=TASKS, learners=LEARNERS, repeats: int = 2,
               log=print) -> list[dict]:
     from dc_lesson import algorithms, budget
-    unknown = [n for n in learners if n not in LEARNERS]
+    unknown = [n for n in learners if n not in LEARNERS + EXTRA]
     if unknown:
-        raise ValueError(f"perf runs times {', '.join(LEARNERS)}; not {', '.join(unknown)}")
+        raise ValueError(f"perf runs times {', '.join(LEARNERS + EXTRA)}; not "
+                         f"{', '.join(unknown)}")
     old_tree, new_tree = extract(before), pathlib.Path(__file__).resolve().parents[2]
     b = budget.get("lesson")
     rows = []
@@ -157,10 +167,11 @@ def benchmark(before: str = ISSUE_14, tasks=TASKS, learners=LEARNERS, repeats: i
             if diffs:
                 raise RuntimeError(f"{name} on {task} does different work in the two trees: "
                                    + "; ".join(diffs))
-            cfg = algorithms.get(name).preset(b, 0)
+            kind = "dc" if name == "dc-cheaper" else name
+            cfg = algorithms.get(kind).preset(b, 0)
             steps = {"bc": 0, "ppo": getattr(cfg, "total_steps", 0),
-                     "gail": cfg.ppo.total_steps if name == "gail" else 0,
-                     "dc": cfg.env_steps(task) if name == "dc" else 0}[name]
+                     "gail": cfg.ppo.total_steps if kind == "gail" else 0,
+                     "dc": cfg.env_steps(task) if kind == "dc" else 0}[kind]
             sec = {k: [x["seconds"] for x in v] for k, v in runs.items()}
             med = {k: statistics.median(v) for k, v in sec.items()}
             row = {"learner": name, "task": task, "env_steps": steps,
@@ -196,5 +207,5 @@ def main(before=None, tasks=None, learners=None, repeats: int = 2, out=None,
     return rows
 
 
-__all__ = ["ISSUE_14", "LEARNERS", "RevisionError", "TASKS", "benchmark", "extract",
+__all__ = ["EXTRA", "ISSUE_14", "LEARNERS", "RevisionError", "TASKS", "benchmark", "extract",
            "format_row", "main", "run_in", "same_work"]
