@@ -27,6 +27,7 @@ import io
 import json
 import os
 import pathlib
+import shutil
 import statistics
 import subprocess
 import sys
@@ -102,12 +103,20 @@ def extract(revision: str) -> pathlib.Path:
     sha = got.stdout.strip()
     tree = pathlib.Path(os.environ.get("XDG_CACHE_HOME", pathlib.Path.home() / ".cache")
                         ) / "dc_lesson" / "revisions" / sha
-    if not (tree / "dc_lesson" / "__init__.py").exists():
+    if not tree.exists():
         archive = subprocess.run(["git", "-C", str(root), "archive", sha, "dc_lesson"],
                                  capture_output=True, check=True).stdout
-        tree.mkdir(parents=True, exist_ok=True)
+        # extracted beside, then renamed: an interrupted extraction never looks finished
+        partial = tree.with_name(f"{sha}.partial-{os.getpid()}")
+        partial.mkdir(parents=True, exist_ok=True)
         with tarfile.open(fileobj=io.BytesIO(archive)) as tar:
-            tar.extractall(tree, filter="data")
+            tar.extractall(partial, filter="data")
+        try:
+            partial.rename(tree)
+        except OSError:          # another process finished first: use its tree
+            if not tree.exists():
+                raise
+            shutil.rmtree(partial, ignore_errors=True)
     return tree
 
 
