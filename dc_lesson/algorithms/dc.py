@@ -83,12 +83,12 @@ The paper's averaging is this with u = 0 and x_i reset to z each iteration.
   clip 0.1, for 1,000 iterations; at our smaller budgets 3e-4 and PPO's clip of 0.5).
 * *P_w*: SoftFlow with the library's defaults except a fixed-step rk4 training solver (several
   times cheaper than dopri5, and the reward is evaluated with rk4 too), both at step 0.25
-  (``flow_step``, ``reward_step``; every stored run used 0.25; 0.5 makes a lesson run on
-  reacher4 about 1.2x faster, and ``dc-lesson perf dc-fit`` measures what it does to learning);
-  fitted on up to
-  ``flow_states`` expert states in loop 0 (``flow_iterations`` steps), refitted in later loops on
-  the same number of expert and learner states each (``flow_refit_iterations`` steps, a fresh
-  Adam; the standardisation stays the first fit's, so rewards stay comparable across loops).
+  (``flow_step``, ``reward_step``; every stored run used 0.25; both at 0.5 make a lesson run
+  on reacher4 about 1.3x faster, and ``dc-lesson perf dc-fit`` measures what that does to
+  learning); fitted on up to ``flow_states`` expert states in loop 0 (``flow_iterations``
+  steps), refitted in later loops on the same number of expert and learner states each
+  (``flow_refit_iterations`` steps, a fresh Adam; the standardisation stays the first fit's,
+  so rewards stay comparable across loops).
   Learner states for a refit come from ``n_envs`` fresh episodes of the stochastic policy, which
   count as environment interactions.
 
