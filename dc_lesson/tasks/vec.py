@@ -172,7 +172,7 @@ class VecEnv:
                               f"takes actions of shape {shape}, got shape {a.shape}")
         if not np.isfinite(a).all():
             raise ActionError(f"task {self.spec.name!r} got non-finite actions")
-        # np.clip's value, without its Python wrapper (called twice per step of a rollout)
+        # np.clip's value, without its Python wrapper (called on every step of a rollout)
         return np.minimum(np.maximum(a, self.action_low), self.action_high)
 
     def step(self, actions, *, checked: bool = False
