@@ -190,14 +190,14 @@ def _edge_values(rng):
     inside and outside them, infinities, NaN, and plenty of ordinary numbers."""
     special = [0.0, -0.0, 1.0, -1.0, 2.0, -2.0, 5.0, 10.0, -10.0, 20.0, np.nextafter(10.0, 0),
                np.nextafter(1.0, 0), np.nextafter(1.0, 2), 1e-300, -1e-300, np.inf, -np.inf,
-               np.nan]
+               np.nan, 1.2, np.nextafter(1.2, 0), 0.6, 0.5, np.nextafter(0.5, 1)]
     return np.concatenate([rng.normal(0, s, 4000) for s in (0.01, 1.0, 5.0, 30.0)]
                           + [np.array(special)])
 
 
 def test_the_ports_tolerances_are_dm_controls_to_the_bit():
-    """base's three tolerances are dm_control's ``rewards.tolerance`` in the forms the ports
-    call it, float for float (a stored run's rewards must not move)."""
+    """base's tolerances are dm_control's ``rewards.tolerance`` in the forms the ports call
+    it, float for float (a stored run's rewards must not move)."""
     from dm_control.utils import rewards
     from dc_lesson.tasks import base
     x = _edge_values(np.random.default_rng(0))
@@ -211,6 +211,14 @@ def test_the_ports_tolerances_are_dm_controls_to_the_bit():
         np.testing.assert_array_equal(
             base.linear_tolerance_above(x, 10.0, 10.0),
             rewards.tolerance(x, bounds=(10.0, float("inf")), margin=10.0, value_at_margin=0,
+                              sigmoid="linear"))
+        # the walker's two (stand height 1.2, move speed 1 m/s)
+        np.testing.assert_array_equal(base.gaussian_tolerance_above(x, 1.2, 0.6),
+                                      rewards.tolerance(x, bounds=(1.2, float("inf")),
+                                                        margin=0.6))
+        np.testing.assert_array_equal(
+            base.linear_tolerance_above(x, 1.0, 0.5, value_at_margin=0.5),
+            rewards.tolerance(x, bounds=(1.0, float("inf")), margin=0.5, value_at_margin=0.5,
                               sigmoid="linear"))
 
 

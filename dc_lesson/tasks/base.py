@@ -191,10 +191,21 @@ def quadratic_tolerance(x) -> np.ndarray:
     return np.where(d < 1, 1 - d ** 2, 0.0)
 
 
-def linear_tolerance_above(x, lower: float, margin: float) -> np.ndarray:
-    """``tolerance(x, bounds=(lower, inf), margin=margin, value_at_margin=0,
-    sigmoid="linear")``: 1 from ``lower`` up, falling linearly to 0 ``margin`` below it."""
+def gaussian_tolerance_above(x, lower: float, margin: float) -> np.ndarray:
+    """``tolerance(x, bounds=(lower, inf), margin=margin)``: 1 from ``lower`` up, the gaussian
+    sigmoid below it (0.1 at ``margin`` below)."""
     d = (lower - x) / margin
+    return np.where(x >= lower, 1.0, np.exp(-0.5 * (d * _GAUSSIAN_AT_01) ** 2))
+
+
+def linear_tolerance_above(x, lower: float, margin: float,
+                           value_at_margin: float = 0.0) -> np.ndarray:
+    """``tolerance(x, bounds=(lower, inf), margin=margin, value_at_margin=value_at_margin,
+    sigmoid="linear")``: 1 from ``lower`` up, falling linearly to ``value_at_margin``
+    ``margin`` below it (and on to 0)."""
+    d = (lower - x) / margin
+    if value_at_margin:
+        d = d * (1 - value_at_margin)
     return np.where(x >= lower, 1.0, np.where(d < 1, 1 - d, 0.0))
 
 

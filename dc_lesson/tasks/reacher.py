@@ -99,8 +99,12 @@ class ReachAny(PortTask):
 
     def resolve(self, model):
         finger = name_id(model, "geom", "finger")
-        return {"finger": finger,
-                "targets": [name_id(model, "geom", f"target{k}") for k in range(self.n_targets)],
+        targets = [name_id(model, "geom", f"target{k}") for k in range(self.n_targets)]
+        if targets != list(range(targets[0], targets[0] + len(targets))):  # pragma: no cover
+            raise RuntimeError("the reacher's target geoms are not consecutive in the model")
+        # the targets as a slice of the geoms: a view of them, where a list index copies
+        return {"finger": finger, "targets": targets,
+                "target_slice": slice(targets[0], targets[0] + len(targets)),
                 "radii": TARGET_SIZE + float(model.geom_size[finger, 0])}
 
     def initialize_episode(self, physics):
@@ -125,10 +129,12 @@ class ReachAny(PortTask):
         # ``rewards.tolerance(dist, (0, radii))`` with no margin, which is the indicator of
         # ``0 <= dist <= radii``; a distance is never negative, so the indicator of
         # ``dist <= radii`` (False for NaN, as the tolerance's).  The distance as
-        # ``np.linalg.norm(axis=2)`` computes it.  The same floats; a test holds them together.
-        to_targets = b.geom_xpos[:, b.ids["targets"], :2] - self._fingertip(b)[:, None]
-        dist = np.sqrt((to_targets * to_targets).sum(axis=2))
-        return np.any(dist <= b.ids["radii"], axis=1).astype(np.float64)
+        # ``np.linalg.norm(axis=2)`` computes it (a sum of two squares is their one addition).
+        # The same floats; a test holds them together.
+        to_targets = b.geom_xpos[:, b.ids["target_slice"], :2] - self._fingertip(b)[:, None]
+        sq = to_targets * to_targets
+        dist = np.sqrt(sq[..., 0] + sq[..., 1])
+        return (dist <= b.ids["radii"]).any(axis=1).astype(np.float64)
 
     def batch_mode_feature(self, b):
         return self._fingertip(b)

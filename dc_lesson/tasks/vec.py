@@ -198,7 +198,7 @@ class VecEnv:
             self._batch.step(None if n == self.n_envs else np.arange(n, dtype=np.int32),
                              nstep=self.spec.n_sub_steps, stage=mujoco.mjtStage.mjSTAGE_VEL)
         obs, rew, feat = self._outputs(n)
-        if not np.all(np.isfinite(obs)):
+        if not np.isfinite(obs).all():
             raise PhysicsDiverged(f"the {self.spec.name} simulation diverged at step {self.t}")
         self.t += 1
         return obs, rew, feat, self.t >= self.spec.horizon

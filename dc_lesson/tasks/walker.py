@@ -10,9 +10,9 @@ import collections
 
 import numpy as np
 from dm_control.suite import walker as suite_walker
-from dm_control.utils import rewards
 
-from dc_lesson.tasks.base import PortTask, TaskSpec, name_id, sensor_slice
+from dc_lesson.tasks.base import (PortTask, TaskSpec, gaussian_tolerance_above,
+                                  linear_tolerance_above, name_id, sensor_slice)
 
 SPEC = TaskSpec(
     name="walker", paper_task="Walker2d-v2", base="suite walker, walk task",
@@ -48,15 +48,16 @@ class Walk(PortTask, suite_walker.PlanarWalker):
                                        height=b.xpos[:, b.ids["torso"], 2], velocity=b.qvel)
 
     def batch_reward(self, b):
+        # PlanarWalker.get_reward term by term, its tolerances as base's equivalents of
+        # dm_control's (the same floats, cheaper; tests/test_tasks.py)
         height = b.xpos[:, b.ids["torso"], 2]
-        standing = rewards.tolerance(height, bounds=(suite_walker._STAND_HEIGHT, float("inf")),
-                                     margin=suite_walker._STAND_HEIGHT / 2)
+        standing = gaussian_tolerance_above(height, suite_walker._STAND_HEIGHT,
+                                            suite_walker._STAND_HEIGHT / 2)
         upright = (1 + b.xmat[:, b.ids["torso"], _ZZ]) / 2
         stand_reward = (3 * standing + upright) / 4
         speed = self._move_speed
-        move_reward = rewards.tolerance(b.sensordata[:, b.ids["vel"]],
-                                        bounds=(speed, float("inf")), margin=speed / 2,
-                                        value_at_margin=0.5, sigmoid="linear")
+        move_reward = linear_tolerance_above(b.sensordata[:, b.ids["vel"]], speed, speed / 2,
+                                             value_at_margin=0.5)
         return stand_reward * (5 * move_reward + 1) / 6
 
     def batch_mode_feature(self, b):
