@@ -112,7 +112,7 @@ PRESETS: dict[str, Budget] = {
                     table3_steps=(("default", 4096),), table3_eval_episodes=2,
                     table3_curve_points=2, table3_curve_episodes=1,
                     ablation_curve_points=2, ablation_curve_episodes=1),
-    "lesson": Budget("lesson", tour_episodes=10, video_steps=150, bench_steps=8000,
+    "lesson": Budget("lesson", tour_episodes=10, video_steps=150, bench_steps=16000,
                      bc_demo_counts=(4, 11, 18, 25), bc_seeds=(0, 1, 2, 3, 4),
                      bc_eval_episodes=50, bc_max_epochs=200, il_demos=18,
                      il_seeds=(0, 1, 2), il_steps=300_000, il_eval_episodes=50),

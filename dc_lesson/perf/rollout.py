@@ -15,6 +15,15 @@ For each task it times, on one core and with uniformly random actions:
 
 and prints control steps per second with the ratios rollout / raw, rollout / dm_control and
 rollout / EnvPool.  Ratios, not absolute times, are what carry over between machines.
+
+How it times, and why: each path runs once untimed before the timed runs (the first rollout
+of a process pays for imports and first allocations, up to a second, which a short window would
+count as stepping); each timed window is ``n_steps`` control steps (the rollout path's is one
+batch of episodes, at most the horizon long, as an algorithm collects them); the four paths
+run back to back ``repeats`` times and each ratio is the median of the per-repeat ratios.
+Windows of a few hundred batched steps (20-50 ms on a one-substep task) move by 20-30%
+from one repeat to the next on this machine; use ``--steps 16000`` or more for numbers to
+quote (the lesson budget's default).
 """
 
 from __future__ import annotations
@@ -107,17 +116,28 @@ def _rollout_steps_per_s(name: str, n_steps: int, batch: int) -> float:
     return batch * steps / (time.perf_counter() - t0)
 
 
-def rollout_benchmark(names=None, n_steps: int = 3000, batch: int = 16,
-                      repeats: int = 3) -> list[dict]:
+def _warm_up(name: str, batch: int, with_envpool: bool) -> None:
+    """Each path once, untimed: imports and first allocations are not stepping."""
+    n = 20 * batch
+    _raw_steps_per_s(name, n)
+    _dm_control_steps_per_s(name, n)
+    _rollout_steps_per_s(name, n, batch)
+    if with_envpool:
+        _envpool_steps_per_s(name, n, batch)
+
+
+def rollout_benchmark(names=None, n_steps: int = 16000, batch: int = 16,
+                      repeats: int = 5) -> list[dict]:
     """Control steps per second for each task, one row per task.
 
-    The three paths are timed back to back, ``repeats`` times; each ratio is the median of the
-    per-repeat ratios, so a machine whose speed drifts between repeats still gives a fair ratio
-    (the throughputs reported are medians too).
+    After an untimed warm-up of each path, the paths are timed back to back, ``repeats``
+    times; each ratio is the median of the per-repeat ratios, so a machine whose speed drifts
+    between repeats still gives a fair ratio (the throughputs reported are medians too).
     """
     rows = []
     with_envpool = envpool_version() is not None
     for name in names or _tasks.NAMES:
+        _warm_up(name, batch, with_envpool)
         runs = np.array([[_raw_steps_per_s(name, n_steps), _dm_control_steps_per_s(name, n_steps),
                           _rollout_steps_per_s(name, n_steps, batch),
                           _envpool_steps_per_s(name, n_steps, batch) if with_envpool else np.nan]
@@ -139,14 +159,16 @@ def rollout_benchmark(names=None, n_steps: int = 3000, batch: int = 16,
 SWEEP_BATCHES = (1, 4, 8, 16, 32, 64)
 
 
-def batch_sweep(name: str = "reacher4", batches=SWEEP_BATCHES, n_steps: int = 8000,
-                repeats: int = 3) -> list[dict]:
+def batch_sweep(name: str = "reacher4", batches=SWEEP_BATCHES, n_steps: int = 16000,
+                repeats: int = 5) -> list[dict]:
     """Control steps per second of the rollout path against the number of copies stepped in
     lockstep, as a fraction of raw stepping (a one-substep task, where the per-call overhead
     shows most): how many environments a batch needs before its fixed costs (one MuJoCo call,
     one NumPy pass, one policy call per control step) stop mattering."""
     out = []
     for batch in batches:
+        _raw_steps_per_s(name, 20 * batch)                 # untimed warm-ups
+        _rollout_steps_per_s(name, 20 * batch, batch)
         runs = np.array([[_raw_steps_per_s(name, n_steps),
                           _rollout_steps_per_s(name, n_steps, batch)] for _ in range(repeats)])
         out.append({"task": name, "batch": batch, "dc_lesson rollout": float(np.median(runs[:, 1])),
@@ -173,7 +195,7 @@ def format_rows(rows: list[dict]) -> str:
     return "\n".join(lines)
 
 
-def main(names=None, n_steps: int = 3000, out: str | None = None, command: str = "") -> list[dict]:
+def main(names=None, n_steps: int = 16000, out: str | None = None, command: str = "") -> list[dict]:
     rows = rollout_benchmark(names, n_steps)
     print(format_rows(rows))
     sweep_task = next((n for n in (names or _tasks.NAMES) if n.startswith("reacher")), None)
