@@ -112,3 +112,76 @@ def test_rollouts_and_batches_agree_on_either_path():
     s1 = rollout.collect("reacher1", StochasticPolicy(pi, seed=9), 2, seed=1, max_steps=30)
     s2 = rollout.collect("reacher1", StochasticPolicy(pi, seed=9), 2, seed=1, max_steps=30)
     np.testing.assert_array_equal(s1[0].actions, s2[0].actions)
+
+
+def _train_a_little(optimiser: str, max_norm: float, lean: bool, n_steps: int = 100):
+    """``n_steps`` minibatch steps of two small networks (PPO's step: one optimiser, each
+    network clipped on its own), with torch's wrappers or the lean calls; the learning rate
+    moves as PPO's annealing moves it."""
+    torch.manual_seed(0)
+    pi, v = GaussianPolicy(5, 2, (16, 16)), ValueNetwork(5, (16, 16))
+    make = fast.adamw if optimiser == "adamw" else fast.adam
+    opt = make([*pi.parameters(), *v.parameters()], lr=1e-2, eps=1e-5, weight_decay=1e-3)
+    g = torch.Generator().manual_seed(1)
+    norms = []
+    torch_steps = []
+    torch_step = opt.step
+    opt.step = lambda: (torch_steps.append(1), torch_step())[1]   # counts torch's own steps
+    for step in range(n_steps):
+        x, a = torch.randn(32, 5, generator=g), torch.randn(32, 2, generator=g)
+        loss = -pi.distribution(x).log_prob(a).sum(-1).mean() + (v(x) - a[:, 0]).pow(2).mean()
+        if step == 7:   # one step where one tensor's gradient is infinite, the others finite
+            loss = loss + pi.log_std.sum() * float("inf")
+        opt.param_groups[0]["lr"] = 1e-2 * (1 - step / n_steps)
+        if lean:
+            fast.zero_grad(opt)
+        else:
+            opt.zero_grad()
+        loss.backward()
+        if lean:
+            norms += [fast.clip_grad_norm_(list(m.parameters()), max_norm) for m in (pi, v)]
+            fast.optimizer_step(opt)
+        else:
+            norms += [torch.nn.utils.clip_grad_norm_(list(m.parameters()), max_norm)
+                      for m in (pi, v)]
+            opt.step()
+        if step == 7:   # start again from finite weights, both ways alike
+            with torch.no_grad():
+                for p in (*pi.parameters(), *v.parameters()):
+                    p.copy_(torch.nan_to_num(p, nan=0.1))
+            opt.state.clear()
+    # the lean path took torch's step only where the state was created (steps 0 and 8)
+    assert len(torch_steps) == (2 if lean else n_steps)
+    return pi, v, opt, torch.stack(norms)
+
+
+@pytest.mark.parametrize("optimiser", ["adamw", "adam"])
+@pytest.mark.parametrize("max_norm", [0.5, float("inf")])
+def test_the_lean_optimiser_step_is_torchs_to_the_bit(optimiser, max_norm):
+    """fast.optimizer_step / zero_grad / clip_grad_norm_ against Optimizer.step, zero_grad and
+    clip_grad_norm_: the same weights, optimiser state and norms after a hundred steps, one
+    of them with an infinite gradient (whose norm turns every gradient it clips to NaN, even
+    under an infinite bound)."""
+    ref = _train_a_little(optimiser, max_norm, lean=False)
+    got = _train_a_little(optimiser, max_norm, lean=True)
+    for a, b in zip((*ref[0].parameters(), *ref[1].parameters()),
+                    (*got[0].parameters(), *got[1].parameters())):
+        torch.testing.assert_close(b, a, rtol=0, atol=0, equal_nan=True)
+    for (ka, sa), (kb, sb) in zip(ref[2].state_dict()["state"].items(),
+                                  got[2].state_dict()["state"].items()):
+        assert ka == kb
+        for name in sa:
+            torch.testing.assert_close(sb[name], sa[name], rtol=0, atol=0)
+    torch.testing.assert_close(got[3], ref[3], rtol=0, atol=0, equal_nan=True)
+    assert not torch.isfinite(ref[3]).all() and (ref[3][-10:] > 0).all()
+
+
+def test_the_lean_step_bumps_the_versions_a_snapshot_reads():
+    pi = GaussianPolicy(5, 2, (16, 16))
+    opt = fast.adamw(pi.parameters(), lr=1e-2)
+    for _ in range(2):
+        fast.zero_grad(opt)
+        pi(torch.randn(4, 5)).sum().backward()
+        before = [p._version for p in pi.parameters()]
+        fast.optimizer_step(opt)
+        assert all(p._version > b for p, b in zip(pi.parameters(), before) if p.grad is not None)

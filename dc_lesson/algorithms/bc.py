@@ -216,14 +216,14 @@ def bc_step(policy: GaussianPolicy, optimizer: torch.optim.Optimizer, obs, act,
     learner pairs; ``extra_loss()``, if given, is added to the NLL (consensus ADMM's proximal
     term)."""
     terms = bc_loss(policy, obs, act)
-    optimizer.zero_grad()
+    _fast.zero_grad(optimizer)
     loss = terms["nll"] if extra_loss is None else terms["nll"] + extra_loss()
     loss.backward()
     params = [p for group in optimizer.param_groups for p in group["params"]]
     # clip_grad_norm_ with an infinite bound measures the norm without changing the gradient.
     grad_norm = _fast.clip_grad_norm_(
         params, math.inf if max_grad_norm is None else max_grad_norm)
-    optimizer.step()
+    _fast.optimizer_step(optimizer)
     return {**{k: float(v.detach()) for k, v in terms.items()}, "grad_norm": float(grad_norm)}
 
 

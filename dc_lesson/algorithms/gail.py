@@ -313,9 +313,9 @@ def discriminator_step(disc: Discriminator, optimizer: torch.optim.Optimizer, ex
     """One Adam step on :func:`discriminator_loss`; returns its terms (before the step)."""
     terms = discriminator_loss(disc, expert_obs, expert_act, learner_obs, learner_act,
                                grad_penalty, generator)
-    optimizer.zero_grad()
+    _fast.zero_grad(optimizer)
     terms["loss"].backward()
-    optimizer.step()
+    _fast.optimizer_step(optimizer)
     return {k: float(v.detach()) for k, v in terms.items()}
 
 

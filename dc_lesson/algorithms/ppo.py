@@ -456,13 +456,13 @@ def ppo_update(policy: GaussianPolicy, value_fn: ValueNetwork, optimizer: torch.
             if extra_loss is not None:
                 loss = loss + extra_loss()
 
-            optimizer.zero_grad()
+            _fast.zero_grad(optimizer)
             loss.backward()
             # Clip each network on its own: the value loss, with targets up to 1 / (1 - gamma),
             # would otherwise take the whole norm and shrink the policy's step.
             gn_pi = _fast.clip_grad_norm_(pi_params, config.max_grad_norm)
             gn_v = _fast.clip_grad_norm_(v_params, config.max_grad_norm)
-            optimizer.step()
+            _fast.optimizer_step(optimizer)
 
             for k, v in (("policy_loss", pg_loss), ("value_loss", v_loss), ("entropy", entropy),
                          ("approx_kl", approx_kl), ("clip_fraction", clip_fraction),
