@@ -441,6 +441,27 @@ print(f"{sweep['task'].iloc[0]}: rollout / raw by environments per batch")
 sweep[["dc_lesson rollout", "rollout / raw"]].round(2).T
 
 # %% [markdown]
+# How long does a whole run take? `dc-lesson perf runs` trains each learner's lesson preset
+# (the settings the book's studies run) on one core, from the same demonstrations and the same
+# BC start, twice: with today's code and with the code as it stood before the library's speed
+# work (issue 14, revision `7445a95`, extracted by git), alternating which goes first. BC runs a
+# fixed 20 epochs here (early stopping would stop the two codes at different epochs). The
+# seconds are the machine's of that day; the ratio, today's speed over the earlier code's, is
+# what carries over. Environment steps per second count the interactions a run takes, its
+# updates included.
+
+# %%
+from dc_lesson.perf import runs as perf_runs
+
+runs = read_result("perf_runs.json")
+print(f"command: {runs['command']}   revision: {runs['revision'][:12]}   "
+      f"against: {runs['before'][:12]}")
+print(perf_runs.in_words(runs["rows"]))
+table = pd.DataFrame(runs["rows"]).set_index(["learner", "task"])
+table[["seconds_before", "seconds_today", "ratio", "steps_per_s_before",
+       "steps_per_s_today"]].round(2)
+
+# %% [markdown]
 # ## Summary
 #
 # * Ten dm_control tasks stand in for the paper's ten Gym tasks; `tasks.make(name, seed)`

@@ -43,3 +43,14 @@ def test_a_run_imports_the_package_of_the_extracted_revision(tmp_path, monkeypat
     out = runs.run_in(tree, "bc", "reacher1")
     assert pathlib.Path(out["package"]).resolve().is_relative_to(tree.resolve())
     assert out["config"]["epochs"] == 20 and out["seconds"] > 0
+
+
+def test_the_chapters_words_name_the_longest_run_and_any_learner_no_faster():
+    rows = [{"learner": "bc", "task": "reacher4", "seconds_today": 2.0, "ratio": 1.2},
+            {"learner": "dc", "task": "halfcheetah", "seconds_today": 67.7, "ratio": 1.3}]
+    words = runs.in_words(rows)
+    assert "dc on halfcheetah, 68 s" in words and "every learner ran faster" in words
+    rows[0]["ratio"] = 1.0
+    words = runs.in_words(rows)
+    assert "every learner" not in words
+    assert "no faster than with the earlier code: bc on reacher4" in words

@@ -436,3 +436,29 @@ def test_ppo_learns_cartpole():
     assert all(math.isfinite(row["policy_loss"]) for row in log)
     assert p < 0.05
     assert trained.mean() >= random.mean() + MIN_GAIN
+
+
+def test_a_zero_entropy_weight_left_out_of_the_loss_changes_no_gradient_bit():
+    """ppo_update leaves ``- ent_coef * entropy`` out of the loss when ent_coef is 0: the term
+    would add -0.0 to the log-std's gradient.  The gradients with and without it, to the bit
+    (log-std 0 too, where the logp path's own gradient can be a signed zero)."""
+    torch.manual_seed(0)
+    pi, v = GaussianPolicy(5, 2, (16, 16)), ValueNetwork(5, (16, 16))
+    z, act = torch.randn(64, 5), torch.randn(64, 2)
+    olp, adv, tg = torch.randn(64) - 3, torch.randn(64), torch.randn(64)
+    params = [*pi.parameters(), *v.parameters()]
+    for log_std in (-0.5, 0.0):
+        with torch.no_grad():
+            pi.log_std.fill_(log_std)
+        grads = []
+        for with_term in (True, False):
+            logp, entropy = pi.log_prob_entropy(z, act)
+            pg, _, _ = ppo.clipped_surrogate(logp, olp, adv, 0.2)
+            loss = pg + 0.5 * ppo.value_loss(v.value_of(z), tg, tg)
+            if with_term:
+                loss = pg - 0.0 * entropy.mean() + 0.5 * ppo.value_loss(v.value_of(z), tg, tg)
+            grads.append(torch.autograd.grad(loss, params, allow_unused=True))
+        for a, b in zip(*grads):
+            assert (a is None) == (b is None)
+            if a is not None:
+                assert torch.equal(a, b) and torch.equal(torch.signbit(a), torch.signbit(b))

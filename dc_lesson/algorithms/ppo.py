@@ -365,8 +365,8 @@ def clipped_surrogate(new_logp: torch.Tensor, old_logp: torch.Tensor, advantages
     """
     log_ratio = new_logp - old_logp
     ratio = log_ratio.exp()
-    loss = torch.max(-advantages * ratio,
-                     -advantages * ratio.clamp(1 - clip_coef, 1 + clip_coef)).mean()
+    neg_adv = -advantages
+    loss = torch.max(neg_adv * ratio, neg_adv * ratio.clamp(1 - clip_coef, 1 + clip_coef)).mean()
     with torch.no_grad():
         approx_kl = ((ratio - 1) - log_ratio).mean()
         clip_fraction = ((ratio - 1).abs() > clip_coef).float().mean()
@@ -452,7 +452,11 @@ def ppo_update(policy: GaussianPolicy, value_fn: ValueNetwork, optimizer: torch.
                 new_logp, olp, adv, config.clip_coef)
             v_loss = value_loss(new_values, ov, tg,
                                 config.clip_coef if config.clip_vloss else None)
-            loss = pg_loss - config.ent_coef * entropy + config.vf_coef * v_loss
+            if config.ent_coef:
+                loss = pg_loss - config.ent_coef * entropy + config.vf_coef * v_loss
+            else:   # a zero weight's term would add -0.0 to the log-std's gradient, which
+                #     changes no bit: left out of the backward pass
+                loss = pg_loss + config.vf_coef * v_loss
             if extra_loss is not None:
                 loss = loss + extra_loss()
 

@@ -195,6 +195,17 @@ def benchmark(before: str = ISSUE_14, tasks=TASKS, learners=LEARNERS, repeats: i
     return rows
 
 
+def in_words(rows: list[dict]) -> str:
+    """What chapter 00 says of a stored benchmark: the longest run of today's code, and
+    whether every learner ran faster than with the earlier code (each ratio above 1)."""
+    longest = max(rows, key=lambda r: r["seconds_today"])
+    slower = [f"{r['learner']} on {r['task']}" for r in rows if not r["ratio"] > 1]
+    return (f"the longest lesson run: {longest['learner']} on {longest['task']}, "
+            f"{longest['seconds_today']:.0f} s; "
+            + ("every learner ran faster than with the earlier code" if not slower else
+               "no faster than with the earlier code: " + ", ".join(slower)))
+
+
 def format_row(r: dict) -> str:
     sps = (f"  env steps/s {r['steps_per_s_before']:.0f} -> {r['steps_per_s_today']:.0f}"
            if r["env_steps"] else "")
