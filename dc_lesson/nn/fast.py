@@ -219,7 +219,7 @@ def clip_grad_norm_(params, max_norm: float) -> torch.Tensor:
     (returned) and the gradients scaled by ``min(1, max_norm / (norm + 1e-6))``.  On the fast
     path its foreach kernels are called directly (one CPU device, one dtype: the grouping it
     would do is one group), and an infinite ``max_norm`` (measure, do not clip) skips the
-    multiplication by 1."""
+    multiplication by 1 while the norm is finite."""
     if not enabled():
         return torch.nn.utils.clip_grad_norm_(params, max_norm)
     grads = [p.grad for p in params if p.grad is not None]
