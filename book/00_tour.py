@@ -442,8 +442,8 @@ sweep[["dc_lesson rollout", "rollout / raw"]].round(2).T
 
 # %% [markdown]
 # How long does a whole run take? `dc-lesson perf runs` trains each learner's lesson preset
-# (the settings the book's studies run) on one core, from the same demonstrations and the same
-# BC start, twice: with today's code and with the code as it stood before the library's speed
+# (`algorithms.get(name).preset`, what the book's studies start from) on one core, from the
+# same demonstrations and the same BC start, twice: with today's code and with the code as it stood before the library's speed
 # work (issue 14, revision `7445a95`, extracted by git), alternating which goes first. BC runs a
 # fixed 20 epochs here (early stopping would stop the two codes at different epochs). The
 # seconds are the machine's of that day; the ratio, today's speed over the earlier code's, is
