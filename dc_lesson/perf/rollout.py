@@ -116,13 +116,14 @@ def _rollout_steps_per_s(name: str, n_steps: int, batch: int) -> float:
     return batch * steps / (time.perf_counter() - t0)
 
 
-def _warm_up(name: str, batch: int, with_envpool: bool) -> None:
+def _warm_up(name: str, batch: int, dm_control: bool = True, envpool: bool = False) -> None:
     """Each path once, untimed: imports and first allocations are not stepping."""
     n = 20 * batch
     _raw_steps_per_s(name, n)
-    _dm_control_steps_per_s(name, n)
     _rollout_steps_per_s(name, n, batch)
-    if with_envpool:
+    if dm_control:
+        _dm_control_steps_per_s(name, n)
+    if envpool:
         _envpool_steps_per_s(name, n, batch)
 
 
@@ -137,7 +138,7 @@ def rollout_benchmark(names=None, n_steps: int = 16000, batch: int = 16,
     rows = []
     with_envpool = envpool_version() is not None
     for name in names or _tasks.NAMES:
-        _warm_up(name, batch, with_envpool)
+        _warm_up(name, batch, envpool=with_envpool)
         runs = np.array([[_raw_steps_per_s(name, n_steps), _dm_control_steps_per_s(name, n_steps),
                           _rollout_steps_per_s(name, n_steps, batch),
                           _envpool_steps_per_s(name, n_steps, batch) if with_envpool else np.nan]
@@ -167,8 +168,7 @@ def batch_sweep(name: str = "reacher4", batches=SWEEP_BATCHES, n_steps: int = 16
     one NumPy pass, one policy call per control step) stop mattering."""
     out = []
     for batch in batches:
-        _raw_steps_per_s(name, 20 * batch)                 # untimed warm-ups
-        _rollout_steps_per_s(name, 20 * batch, batch)
+        _warm_up(name, batch, dm_control=False)
         runs = np.array([[_raw_steps_per_s(name, n_steps),
                           _rollout_steps_per_s(name, n_steps, batch)] for _ in range(repeats)])
         out.append({"task": name, "batch": batch, "dc_lesson rollout": float(np.median(runs[:, 1])),
