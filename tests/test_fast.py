@@ -185,3 +185,21 @@ def test_the_lean_step_bumps_the_versions_a_snapshot_reads():
         before = [p._version for p in pi.parameters()]
         fast.optimizer_step(opt)
         assert all(p._version > b for p, b in zip(pi.parameters(), before) if p.grad is not None)
+
+
+def test_a_registered_hook_sends_the_step_through_torch():
+    """Hooks are Optimizer.step's to call: with one registered for all optimisers, the lean
+    path steps through torch, and the hook runs."""
+    from torch.optim.optimizer import register_optimizer_step_post_hook
+    pi = GaussianPolicy(5, 2, (16, 16))
+    opt = fast.adamw(pi.parameters(), lr=1e-2)
+    calls = []
+    for _ in range(2):
+        fast.zero_grad(opt)
+        pi(torch.randn(4, 5)).sum().backward()
+        handle = register_optimizer_step_post_hook(lambda *args: calls.append(1))
+        try:
+            fast.optimizer_step(opt)
+        finally:
+            handle.remove()
+    assert len(calls) == 2

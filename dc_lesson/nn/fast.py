@@ -22,6 +22,7 @@ import math
 
 import numpy as np
 import torch
+import torch.optim.optimizer as _optim
 from torch.autograd.graph import increment_version
 
 from dc_lesson.tasks import vec as _vec
@@ -167,11 +168,13 @@ def adam(params, **kwargs) -> torch.optim.Adam:
 # same to the bit (``tests/test_fast.py`` steps both for a hundred steps and compares).
 
 def _lean(optimizer) -> bool:
-    # the kernel call below is what Adam(W)'s fused path calls, for the settings we use
+    # the kernel call below is what Adam(W)'s fused path calls, for the settings we use; a
+    # hook anyone registered (on this optimiser or on all) sends the step through torch
     return (enabled() and isinstance(optimizer, torch.optim.Adam)
             and all(g["fused"] and not (g["amsgrad"] or g["maximize"] or g["capturable"]
                                         or g["differentiable"]) for g in optimizer.param_groups)
-            and not optimizer._optimizer_step_pre_hooks
+            and not (optimizer._optimizer_step_pre_hooks or _optim._global_optimizer_pre_hooks
+                     or _optim._global_optimizer_post_hooks)
             and list(optimizer._optimizer_step_post_hooks.values()) in ([], [_bump_versions]))
 
 

@@ -228,4 +228,4 @@ def main(before=None, tasks=None, learners=None, repeats: int = 2, out=None,
 
 
 __all__ = ["EXTRA", "ISSUE_14", "LEARNERS", "RevisionError", "TASKS", "benchmark", "extract",
-           "format_row", "main", "run_in", "same_work"]
+           "format_row", "in_words", "main", "run_in", "same_work"]
