@@ -65,6 +65,7 @@ from dc_lesson.data.types import Demonstrations, Trajectory
 from dc_lesson import progress as _progress
 from dc_lesson import timing as _timing
 from dc_lesson.algorithms.base import LearnerInputError, TrainResult, check_inputs
+from dc_lesson.nn import backprop as _backprop
 from dc_lesson.nn import fast as _fast
 from dc_lesson.nn.mixture import MixturePolicy
 from dc_lesson.nn.policies import GaussianPolicy
@@ -215,10 +216,16 @@ def bc_step(policy: GaussianPolicy, optimizer: torch.optim.Optimizer, obs, act,
     (before the step) and the gradient norm.  DC's Algorithm 2 calls this on expert plus
     learner pairs; ``extra_loss()``, if given, is added to the NLL (consensus ADMM's proximal
     term)."""
-    terms = bc_loss(policy, obs, act)
     _fast.zero_grad(optimizer)
-    loss = terms["nll"] if extra_loss is None else terms["nll"] + extra_loss()
-    loss.backward()
+    if (extra_loss is None and _fast.enabled() and getattr(policy, "log_std", None) is not None
+            and _backprop.supported(policy.mean_net)):
+        # the same gradients, differentiated without autograd (dc_lesson.nn.backprop)
+        terms = _backprop.bc_grads(policy, torch.as_tensor(obs, dtype=torch.float32),
+                                   torch.as_tensor(act, dtype=torch.float32))
+    else:
+        terms = bc_loss(policy, obs, act)
+        loss = terms["nll"] if extra_loss is None else terms["nll"] + extra_loss()
+        loss.backward()
     params = [p for group in optimizer.param_groups for p in group["params"]]
     # clip_grad_norm_ with an infinite bound measures the norm without changing the gradient.
     grad_norm = _fast.clip_grad_norm_(

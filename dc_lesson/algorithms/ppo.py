@@ -52,6 +52,7 @@ from dc_lesson.algorithms.base import (TrainResult, check_checkpoint, check_inpu
                                        save_run)
 from dc_lesson.checks import check_fields
 from dc_lesson.data.rollout import episode_seeds
+from dc_lesson.nn import backprop as _backprop
 from dc_lesson.nn import fast as _fast
 from dc_lesson.nn.policies import GaussianPolicy, ValueNetwork
 
@@ -390,6 +391,38 @@ def explained_variance(predictions: torch.Tensor, targets: torch.Tensor) -> floa
     return float("nan") if var == 0 else float(1 - (targets - predictions).var() / var)
 
 
+def _loss_backward(policy, value_fn, optimizer, zp, zv, act, olp, ov, adv, tg,
+                   config: PPOConfig, fast_path: bool, generator, extra_loss) -> dict:
+    """One minibatch's loss and ``backward()`` through autograd; returns the logged terms."""
+    gaussian = getattr(policy, "log_std", None) is not None
+    if fast_path:
+        new_logp, entropy = policy.log_prob_entropy(zp, act)
+        entropy = entropy.mean()
+        new_values = value_fn.value_of(zv)
+    elif gaussian:    # the reference path (fast.disabled()): a validated Normal
+        dist = policy.distribution(zp)
+        new_logp = dist.log_prob(act).sum(-1)
+        entropy = dist.entropy().sum(-1).mean()
+        new_values = value_fn(zv)
+    else:     # a mixture (nn.mixture): its exact density, a sampled entropy estimate
+        new_logp = policy.log_prob(zp, act)
+        entropy = policy.entropy(zp, generator).mean()
+        new_values = value_fn(zv)
+    pg_loss, approx_kl, clip_fraction = clipped_surrogate(new_logp, olp, adv, config.clip_coef)
+    v_loss = value_loss(new_values, ov, tg, config.clip_coef if config.clip_vloss else None)
+    if config.ent_coef:
+        loss = pg_loss - config.ent_coef * entropy + config.vf_coef * v_loss
+    else:   # a zero weight's term would add -0.0 to the log-std's gradient, which changes
+        #     no bit: left out of the backward pass
+        loss = pg_loss + config.vf_coef * v_loss
+    if extra_loss is not None:
+        loss = loss + extra_loss()
+    _fast.zero_grad(optimizer)
+    loss.backward()
+    return {"policy_loss": pg_loss, "value_loss": v_loss, "entropy": entropy,
+            "approx_kl": approx_kl, "clip_fraction": clip_fraction}
+
+
 @_timing.timed("ppo_update")
 def ppo_update(policy: GaussianPolicy, value_fn: ValueNetwork, optimizer: torch.optim.Optimizer,
                batch: Batch, config: PPOConfig,
@@ -408,8 +441,7 @@ def ppo_update(policy: GaussianPolicy, value_fn: ValueNetwork, optimizer: torch.
     advantages, targets = batch.advantages.reshape(-1), batch.returns.reshape(-1)
     n = len(obs)
     size = n // config.n_minibatches
-    gaussian = getattr(policy, "log_std", None) is not None
-    fast_path = gaussian and _fast.enabled()
+    fast_path = getattr(policy, "log_std", None) is not None and _fast.enabled()
     if fast_path:
         # The normalisers are frozen during an update, so each network's inputs are the same
         # numbers in every epoch: normalise the batch once (elementwise, so minibatch by
@@ -418,6 +450,11 @@ def ppo_update(policy: GaussianPolicy, value_fn: ValueNetwork, optimizer: torch.
             z_pi, z_v = policy.normalise(obs), value_fn.normalise(obs)
     else:
         z_pi = z_v = obs
+    # On the fast path the common case (no entropy term, no value clipping, no proximal term,
+    # tanh MLPs) is differentiated by hand (dc_lesson.nn.backprop): the same gradients.
+    by_hand = (fast_path and extra_loss is None and not config.ent_coef
+               and not config.clip_vloss and _backprop.supported(policy.mean_net)
+               and _backprop.supported(value_fn.net))
     pi_params, v_params = list(policy.parameters()), list(value_fn.parameters())
     terms: dict[str, list[float]] = {k: [] for k in (
         "policy_loss", "value_loss", "entropy", "approx_kl", "clip_fraction",
@@ -433,46 +470,24 @@ def ppo_update(policy: GaussianPolicy, value_fn: ValueNetwork, optimizer: torch.
                                        targets)]
         for start in range(0, n, size):
             zp, zv, act, olp, ov, adv, tg = (x[start:start + size] for x in shuffled)
-            if fast_path:
-                new_logp, entropy = policy.log_prob_entropy(zp, act)
-                entropy = entropy.mean()
-                new_values = value_fn.value_of(zv)
-            elif gaussian:    # the reference path (fast.disabled()): a validated Normal
-                dist = policy.distribution(zp)
-                new_logp = dist.log_prob(act).sum(-1)
-                entropy = dist.entropy().sum(-1).mean()
-                new_values = value_fn(zv)
-            else:     # a mixture (nn.mixture): its exact density, a sampled entropy estimate
-                new_logp = policy.log_prob(zp, act)
-                entropy = policy.entropy(zp, generator).mean()
-                new_values = value_fn(zv)
             if config.norm_adv:
                 adv = (adv - adv.mean()) / (adv.std() + 1e-8)
-            pg_loss, approx_kl, clip_fraction = clipped_surrogate(
-                new_logp, olp, adv, config.clip_coef)
-            v_loss = value_loss(new_values, ov, tg,
-                                config.clip_coef if config.clip_vloss else None)
-            if config.ent_coef:
-                loss = pg_loss - config.ent_coef * entropy + config.vf_coef * v_loss
-            else:   # a zero weight's term would add -0.0 to the log-std's gradient, which
-                #     changes no bit: left out of the backward pass
-                loss = pg_loss + config.vf_coef * v_loss
-            if extra_loss is not None:
-                loss = loss + extra_loss()
-
-            _fast.zero_grad(optimizer)
-            loss.backward()
+            if by_hand:   # the same loss and gradients, differentiated without autograd
+                _fast.zero_grad(optimizer)
+                now = _backprop.ppo_grads(policy, value_fn, zp, zv, act, olp, adv, tg,
+                                          config.clip_coef, config.vf_coef)
+            else:
+                now = _loss_backward(policy, value_fn, optimizer, zp, zv, act, olp, ov, adv, tg,
+                                     config, fast_path, generator, extra_loss)
             # Clip each network on its own: the value loss, with targets up to 1 / (1 - gamma),
             # would otherwise take the whole norm and shrink the policy's step.
             gn_pi = _fast.clip_grad_norm_(pi_params, config.max_grad_norm)
             gn_v = _fast.clip_grad_norm_(v_params, config.max_grad_norm)
             _fast.optimizer_step(optimizer)
 
-            for k, v in (("policy_loss", pg_loss), ("value_loss", v_loss), ("entropy", entropy),
-                         ("approx_kl", approx_kl), ("clip_fraction", clip_fraction),
-                         ("grad_norm_policy", gn_pi), ("grad_norm_value", gn_v)):
+            for k, v in (*now.items(), ("grad_norm_policy", gn_pi), ("grad_norm_value", gn_v)):
                 terms[k].append(float(v.detach()))
-            epoch_kl.append(float(approx_kl))
+            epoch_kl.append(float(now["approx_kl"]))
         if config.target_kl is not None and np.mean(epoch_kl) > config.target_kl:
             break   # the policy has moved far enough from the one that collected the batch
     out = {k: float(np.mean(v)) for k, v in terms.items()}

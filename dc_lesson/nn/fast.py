@@ -39,7 +39,8 @@ _ACTIVATIONS = {
 
 def enabled() -> bool:
     """Whether the fast paths are on (the default): rollouts through the NumPy forward pass,
-    fused optimisers, and PPO's update on a batch normalised once (``ppo.ppo_update``)."""
+    fused optimisers and their lean step, PPO's update on a batch normalised once
+    (``ppo.ppo_update``), and PPO's and BC's gradients by hand (:mod:`dc_lesson.nn.backprop`)."""
     return _ENABLED
 
 
