@@ -28,6 +28,7 @@ from torch.autograd.graph import increment_version
 from dc_lesson.tasks import vec as _vec
 
 _ENABLED = True
+_ONE = torch.tensor(1.0)
 
 _ACTIVATIONS = {
     "Tanh": np.tanh,
@@ -198,7 +199,8 @@ def optimizer_step(optimizer) -> None:
         calls.append((group, params, states))
     for group, params, states in calls:
         steps = [st["step"] for st in states]
-        torch._foreach_add_(steps, 1)
+        # (a tensor 1 with alpha: the overload that does not wrap the scalar per tensor)
+        torch._foreach_add_(steps, _ONE, alpha=1.0)
         kernel = torch._fused_adamw_ if group["decoupled_weight_decay"] else torch._fused_adam_
         beta1, beta2 = group["betas"]
         kernel(params, [p.grad for p in params], [st["exp_avg"] for st in states],
