@@ -31,6 +31,13 @@ training episodes change; the task, and how an expert is judged, do not.
 
 Unlike CleanRL there is no reward normalisation: the task rewards lie in [0, 1], and an
 algorithm that brings its own reward (DC) decides its scale.
+
+Speed (``dc_lesson.nn.fast``): a minibatch step on 64-unit networks is mostly torch's per-call
+overhead, so on the fast path the batch is normalised once per update, the gradients of the
+usual loss (no entropy term, no value clipping, no proximal term) are taken by hand
+(:func:`dc_lesson.nn.backprop.ppo_grads`), and the clip and the fused AdamW step call their
+kernels directly.  Each gives autograd's and torch's numbers to the bit (the tests compare
+them); ``fast.disabled()`` runs the autograd path with a validated Normal.
 """
 
 from __future__ import annotations
