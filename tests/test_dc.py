@@ -245,23 +245,21 @@ def test_the_preset_spends_the_budgets_interactions():
         dc.DCConfig().batch_size <= budget.get("lesson").il_steps
 
 
-def test_the_solver_steps_are_settings_that_leave_the_stored_runs_configs_alone():
-    """``flow_step`` and ``reward_step`` reach the fit and the reward; at 0.25 (what every
-    stored run used) they stay out of the JSON, so a stored cell's config and hash do not
-    move; another value is in the JSON (a new run, a new cell)."""
+def test_the_flows_numerics_are_settings_that_reach_the_fit_and_the_reward():
+    """``flow_step``, ``reward_step`` and ``reward_nodes`` reach the fit and the reward and
+    are in the JSON: the stored runs' numerics (0.25, 0.25, 4) hash differently from today's
+    defaults (0.5, 0.5, 3), so no cell of the one is taken for the other."""
     import json as _json
-    from dc_lesson.experiments import cells as _cells
-    from dc_lesson.experiments.studies import _imitation as _im, table3 as _t3
-    b = budget.get("lesson")
-    record = _json.loads(next((_cells.cells_root() / "table3" / "hopper").glob(
-        "dc__n4__s0__*.json")).read_text())
-    today = _t3.learner_config("dc", b, "hopper", 0)
-    assert _im.without_seed(_json.loads(today.to_json())) == record["config"]["dc"]
-    assert not set(dc.REFERENCE_STEPS) & set(_json.loads(today.to_json()))
-    cheaper = dataclasses.replace(today, flow_step=0.5, reward_step=0.5)
-    assert {k: _json.loads(cheaper.to_json())[k] for k in dc.REFERENCE_STEPS} == {
-        "flow_step": 0.5, "reward_step": 0.5}
-    flow = cheaper.flow_config()
-    assert (flow.step_size, flow.eval_step_size) == (0.5, 0.5)
-    with pytest.raises(ValueError, match="reward_step"):
-        dataclasses.replace(today, reward_step=0.0)
+    from dc_lesson.experiments.studies import table3 as _t3
+    today = _t3.learner_config("dc", budget.get("lesson"), "hopper", 0)
+    got = _json.loads(today.to_json())
+    assert {k: got[k] for k in dc.STORED_NUMERICS} == {
+        "flow_step": 0.5, "reward_step": 0.5, "reward_nodes": 3}
+    flow = today.flow_config()
+    assert (flow.step_size, flow.eval_step_size, flow.eval_quadrature) == (0.5, 0.5, 3)
+    stored = dataclasses.replace(today, **dc.STORED_NUMERICS)
+    assert {k: _json.loads(stored.to_json())[k] for k in dc.STORED_NUMERICS} == \
+        dc.STORED_NUMERICS and stored.to_json() != today.to_json()
+    for name in dc.STORED_NUMERICS:
+        with pytest.raises(ValueError, match=name):
+            dataclasses.replace(today, **{name: 0})

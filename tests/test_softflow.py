@@ -404,3 +404,33 @@ def test_the_whole_fit_study_in_one_process_gives_consistent_summaries_and_array
     hc = res["tasks"]["halfcheetah2"]
     grid = np.array(hc["feature_grid"])
     assert np.trapezoid(hc["feature_kde_data"], grid) == pytest.approx(1.0, abs=0.02)
+
+
+def test_the_flows_tanh_is_numpys_to_one_ulp_and_torchs_on_request():
+    from dc_lesson.density import _trace
+    from dc_lesson.nn import fast
+    x = torch.linspace(-12, 12, 400_001)
+    ours, theirs = _trace.tanh(x.clone()), torch.tanh(x)
+    assert torch.equal(ours, torch.from_numpy(np.tanh(x.numpy())))   # NumPy's kernel
+    ulp = torch.finfo(torch.float32).eps * theirs.abs().clamp_min(2.0 ** -126)
+    assert ((ours - theirs).abs() <= ulp).all()                     # within one ulp
+    with _trace.torch_tanh():
+        assert torch.equal(_trace.tanh(x.clone()), theirs)
+    with fast.disabled():
+        assert torch.equal(_trace.tanh(x.clone()), theirs)
+    a = x.clone()
+    assert _trace.tanh(a, inplace=True) is a and torch.equal(a, ours)
+
+
+def test_the_flows_tanh_differentiates_as_autograds():
+    from dc_lesson.density import _trace
+    g = torch.Generator().manual_seed(0)
+    a = (3 * torch.randn(64, 32, generator=g)).requires_grad_()
+    w = torch.randn(64, 32, generator=g)
+    h = _trace.tanh(a)
+    (grad,) = torch.autograd.grad((h * w).sum(), a)
+    assert torch.equal(grad, torch.ops.aten.tanh_backward(w, h.detach()))   # autograd's kernel
+    assert torch.allclose(grad, w * (1 - h.detach() ** 2), rtol=1e-6, atol=1e-7)
+    (ref,) = torch.autograd.grad((torch.tanh(a) * w).sum(), a)
+    # 1 - h^2 from an h one ulp apart: at most about 2 ulp(1) of difference per unit of w
+    assert ((grad - ref).abs() <= 4 * torch.finfo(torch.float32).eps * w.abs()).all()

@@ -82,10 +82,16 @@ The paper's averaging is this with u = 0 and x_i reset to z each iteration.
 * *Learning rates*: one ``lr`` for both copies' AdamW (the paper's appendix: 1e-4 with gradient
   clip 0.1, for 1,000 iterations; at our smaller budgets 3e-4 and PPO's clip of 0.5).
 * *P_w*: SoftFlow with the library's defaults except a fixed-step rk4 training solver (several
-  times cheaper than dopri5, and the reward is evaluated with rk4 too), both at step 0.25
-  (``flow_step``, ``reward_step``; every stored run used 0.25; both at 0.5 make a lesson run
-  on reacher4 about 1.3x faster, and ``dc-lesson perf dc-fit`` measures what that does to
-  learning); fitted on up to ``flow_states`` expert states in loop 0 (``flow_iterations``
+  times cheaper than dopri5, and the reward is evaluated with rk4 too).  The cheapest solver
+  settings that keep what DC learns (issue 14): training steps of 0.5 (``flow_step``: two rk4
+  steps; held-out NLL no worse than at 0.25, ``dc-lesson perf flow-fit``), the reward's z at
+  steps of at most 0.5 between the nodes of a 3-point Gauss-Legendre rule for the trace
+  integral (``reward_step``, ``reward_nodes``; against the reference solver about 0.03 nats
+  mean error and a rank correlation of 0.99, the order being what the scaled reward reads),
+  and the flow's tanh by NumPy's kernel (``density._trace``).  Runs before 2026-12-04 used
+  steps of 0.25, 4 nodes and torch's tanh (:data:`STORED_NUMERICS`); ``dc-lesson perf dc-fit
+  --variant defaults`` compares the two over ten seeds.  Fitted on up to ``flow_states``
+  expert states in loop 0 (``flow_iterations``
   steps), refitted in later loops on the same number of expert and learner states each
   (``flow_refit_iterations`` steps, a fresh Adam; the standardisation stays the first fit's,
   so rewards stay comparable across loops).
@@ -144,8 +150,9 @@ _DC_PPO = PPOConfig(n_envs=8, n_steps=250, n_epochs=4, n_minibatches=8, clip_coe
                     anneal_lr=False)
 
 
-# The solver steps every stored DC run used (before they were settings); see to_json.
-REFERENCE_STEPS = {"flow_step": 0.25, "reward_step": 0.25}
+# The flow's numerics of every DC run before 2026-12-04 (with torch's tanh in the flow:
+# density._trace.torch_tanh); perf dc-fit and perf runs compare today's defaults with them.
+STORED_NUMERICS = {"flow_step": 0.25, "reward_step": 0.25, "reward_nodes": 4}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -161,10 +168,10 @@ class DCConfig:
     flow_hidden: tuple[int, ...] = (64, 64, 64)   # SoftFlow's concat-squash widths
     flow_lr: float = 1e-3        # SoftFlow's Adam learning rate
     sigma_max: float = 0.1       # SoftFlow's noise range (standardised states)
-    flow_step: float = 0.25      # rk4 step of P_w's training solve (0.5: the fit about twice
-    #                              as cheap, held-out NLL no worse; dc-lesson perf flow-fit)
-    reward_step: float = 0.25    # largest rk4 step of log P_w's evaluation, the reward (0.5:
-    #                              about 0.73 of the cost, 0.015 nats mean error; perf flow-fit)
+    flow_step: float = 0.5       # rk4 step of P_w's training solve (0.25 costs twice as
+    #                              much for a held-out NLL no better; dc-lesson perf flow-fit)
+    reward_step: float = 0.5     # largest rk4 step of log P_w's evaluation, the reward
+    reward_nodes: int = 3        # Gauss-Legendre nodes of the reward's trace integral
     # Algorithm 2
     update: str = "average"      # "average" (the paper) or "admm" (consensus ADMM with duals)
     rho: float = 1.0             # ADMM's penalty (update="admm" only)
@@ -189,7 +196,8 @@ class DCConfig:
 
     def __post_init__(self):
         check_fields(self, positive=("loops", "iterations", "flow_states", "flow_iterations",
-                                     "flow_lr", "sigma_max", "flow_step", "reward_step", "rho",
+                                     "flow_lr", "sigma_max", "flow_step", "reward_step",
+                                     "reward_nodes", "rho",
                                      "bc_steps", "bc_batch_size", "lr", "max_grad_norm"),
                      non_negative=("flow_refit_iterations", "weight_decay", "seed"))
         if not isinstance(self.ppo, PPOConfig):
@@ -232,7 +240,8 @@ class DCConfig:
         return _softflow.SoftFlowConfig(hidden=self.flow_hidden, sigma_max=self.sigma_max,
                                         lr=self.flow_lr, iterations=self.flow_iterations,
                                         solver="rk4", step_size=self.flow_step,
-                                        eval_step_size=self.reward_step, seed=self.seed)
+                                        eval_step_size=self.reward_step,
+                                        eval_quadrature=self.reward_nodes, seed=self.seed)
 
     def env_steps(self, task: str) -> int:
         """Environment interactions of a whole run: the policy batches plus the learner
@@ -244,11 +253,6 @@ class DCConfig:
     def to_json(self) -> str:
         d = dataclasses.asdict(self)
         d["ppo"] = json.loads(self.ppo_config().to_json())
-        # The solver steps became settings after the stored grids ran at 0.25: at that value
-        # they stay out of the JSON, so those runs' configs (and cell hashes) are unchanged.
-        for name in REFERENCE_STEPS:
-            if d[name] == REFERENCE_STEPS[name]:
-                del d[name]
         return json.dumps(d, sort_keys=True)
 
 
@@ -684,6 +688,6 @@ def _load_checkpoint(path, task, config, learner, generator, envs, disc=None):
     return int(ckpt["loop"]), int(ckpt["iteration"]), flow, scale, json.loads(ckpt["log"])
 
 
-__all__ = ["DCConfig", "DC_DEFAULTS", "REFERENCE_STEPS", "preset", "Learner", "RewardScale", "admm_iteration", "average_into", "copy_into",
+__all__ = ["DCConfig", "DC_DEFAULTS", "STORED_NUMERICS", "preset", "Learner", "RewardScale", "admm_iteration", "average_into", "copy_into",
            "expert_pairs", "flat", "make_learner", "policy_parameters", "sample_bc_pairs",
            "state_log_density", "train"]

@@ -106,8 +106,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="learners: timed runs per path (default 2)")
     s.add_argument("--seeds", type=positive_int, default=None,
                    help="dc-fit: seeds, each a BC start and two DC runs (default 5)")
-    s.add_argument("--variant", default=None, choices=["fit", "fit+reward"],
-                   help="dc-fit: the cheaper solver steps to compare (default: fit)")
+    s.add_argument("--variant", default=None, choices=["fit", "fit+reward", "defaults"],
+                   help="dc-fit: what to compare with the stored runs' numerics: the cheaper "
+                        "training solver, and the reward's, or today's defaults (default: "
+                        "fit)")
     s.add_argument("--before", default=None, metavar="REVISION",
                    help="runs: the earlier revision to time against today's (default: "
                         "7445a95, where issue 14 began)")

@@ -13,13 +13,17 @@ The rule, declared here before the benchmark first ran: the change keeps learnin
 interval of the paired difference (cheaper - today's, per seed) of the scaled return lies
 within +- the seed spread of today's runs (their standard deviation over seeds); otherwise it
 is "not shown" (an interval wider than the spread is too few seeds, not a verdict against).
-Two variants (``--variant``), each a setting of :class:`~dc_lesson.algorithms.dc.DCConfig`:
-``fit`` changes the training solver only (``flow_step`` 0.5; the reward still evaluates
-log P_w at step 0.25), ``fit+reward`` the reward's solver as well (``reward_step`` 0.5).
+"Today's" arm is DC with the flow's numerics of every run before 2026-12-04
+(:data:`~dc_lesson.algorithms.dc.STORED_NUMERICS`: steps 0.25, 4 nodes, torch's tanh).  The
+variants (``--variant``): ``fit`` changes the training solver only (``flow_step`` 0.5; the
+reward still evaluates log P_w at step 0.25), ``fit+reward`` the reward's solver as well
+(``reward_step`` 0.5), both with torch's tanh as they were measured; ``defaults`` is DC as it
+now is by default (steps 0.5, 3 nodes, NumPy's tanh in the flow), the change's own check.
 """
 
 from __future__ import annotations
 
+import contextlib
 import copy
 import dataclasses
 import time
@@ -29,18 +33,31 @@ import torch
 
 from dc_lesson import algorithms, budget as _budget, data
 from dc_lesson.algorithms import dc as _dc
+from dc_lesson.density import _trace
 from dc_lesson.evaluation import evaluate, stats
 from dc_lesson.storage import check_writable, write_result
 
-# The variants, as DCConfig settings (today's: both steps 0.25, dc.REFERENCE_STEPS).
+# The variants, as changes to the stored numerics (dc.STORED_NUMERICS, torch's tanh);
+# "defaults": DC's defaults as they are, NumPy's tanh (None: no change to the preset).
 VARIANTS = {"fit": {"flow_step": 0.5},                          # the training solver only
-            "fit+reward": {"flow_step": 0.5, "reward_step": 0.5}}   # and the reward's too
+            "fit+reward": {"flow_step": 0.5, "reward_step": 0.5},   # and the reward's too
+            "defaults": None}                                   # today's defaults
 
 
-def _run(task, demos, config, start, n_episodes: int) -> dict:
+def arms(b: _budget.Budget, seed: int, variant: str) -> dict:
+    """``{"today": (config, torch_tanh), "cheaper": (config, torch_tanh)}`` of a seed."""
+    stored = dataclasses.replace(_dc.preset(b, seed), **_dc.STORED_NUMERICS)
+    change = VARIANTS[variant]
+    cheaper = ((_dc.preset(b, seed), False) if change is None
+               else (dataclasses.replace(stored, **change), True))
+    return {"today": (stored, True), "cheaper": cheaper}
+
+
+def _run(task, demos, config, start, n_episodes: int, torch_tanh: bool) -> dict:
     t0 = time.perf_counter()
-    policy = algorithms.get("dc").train(task, demos, config, policy=copy.deepcopy(start),
-                                        progress=False).policy
+    with (_trace.torch_tanh() if torch_tanh else contextlib.nullcontext()):
+        policy = algorithms.get("dc").train(task, demos, config, policy=copy.deepcopy(start),
+                                            progress=False).policy
     seconds = time.perf_counter() - t0
     ev = evaluate.evaluate_policy(task, policy, n_episodes=n_episodes, divergences=False)
     return {"seconds": seconds, "scaled_return": float(ev["scaled_return"])}
@@ -58,12 +75,10 @@ def run(task: str = "reacher4", seeds=range(5), b: _budget.Budget | None = None,
     rows = []
     for seed in seeds:
         start = algorithms.bc.warm_start_policy(demos, seed, max_epochs=b.bc_max_epochs)
-        today = _dc.preset(b, seed)
-        cheaper = dataclasses.replace(today, **VARIANTS[variant])
-        order = (("today", today), ("cheaper", cheaper))
+        order = list(arms(b, seed, variant).items())
         row = {"seed": int(seed)}
-        for name, cfg in (order if seed % 2 == 0 else order[::-1]):
-            row[name] = _run(task, demos, cfg, start, n_episodes)
+        for name, (cfg, torch_tanh) in (order if seed % 2 == 0 else order[::-1]):
+            row[name] = _run(task, demos, cfg, start, n_episodes, torch_tanh)
         rows.append(row)
         log(f"seed {seed}: today {row['today']['seconds']:.1f} s, scaled return "
             f"{row['today']['scaled_return']:.3f}; cheaper ({variant}) "
@@ -115,4 +130,4 @@ def main(tasks=None, seeds=range(5), out=None, command: str = "dc-lesson perf dc
     return result
 
 
-__all__ = ["VARIANTS", "format_summary", "main", "run", "summarise"]
+__all__ = ["VARIANTS", "arms", "format_summary", "main", "run", "summarise"]
