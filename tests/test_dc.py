@@ -246,20 +246,22 @@ def test_the_preset_spends_the_budgets_interactions():
 
 
 def test_the_flows_numerics_are_settings_that_reach_the_fit_and_the_reward():
-    """``flow_step``, ``reward_step`` and ``reward_nodes`` reach the fit and the reward and
-    are in the JSON: the stored runs' numerics (0.25, 0.25, 4) hash differently from today's
-    defaults (0.5, 0.5, 3), so no cell of the one is taken for the other."""
+    """``flow_step``, ``reward_step``, ``reward_nodes`` and ``flow_tanh`` reach the fit and
+    the reward and are in the JSON: the stored runs' numerics (0.25, 0.25, 4, torch) hash
+    differently from today's defaults (0.5, 0.5, 3, numpy), so no cell of the one is taken for
+    the other."""
     import json as _json
     from dc_lesson.experiments.studies import table3 as _t3
     today = _t3.learner_config("dc", budget.get("lesson"), "hopper", 0)
     got = _json.loads(today.to_json())
     assert {k: got[k] for k in dc.STORED_NUMERICS} == {
-        "flow_step": 0.5, "reward_step": 0.5, "reward_nodes": 3}
+        "flow_step": 0.5, "reward_step": 0.5, "reward_nodes": 3, "flow_tanh": "numpy"}
     flow = today.flow_config()
-    assert (flow.step_size, flow.eval_step_size, flow.eval_quadrature) == (0.5, 0.5, 3)
+    assert (flow.step_size, flow.eval_step_size, flow.eval_quadrature, flow.tanh) == (
+        0.5, 0.5, 3, "numpy")
     stored = dataclasses.replace(today, **dc.STORED_NUMERICS)
     assert {k: _json.loads(stored.to_json())[k] for k in dc.STORED_NUMERICS} == \
         dc.STORED_NUMERICS and stored.to_json() != today.to_json()
     for name in dc.STORED_NUMERICS:
         with pytest.raises(ValueError, match=name):
-            dataclasses.replace(today, **{name: 0})
+            dataclasses.replace(today, **{name: "fast" if name == "flow_tanh" else 0})

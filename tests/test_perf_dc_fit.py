@@ -37,35 +37,35 @@ def test_each_variant_fits_with_its_own_solver_step_and_the_reward_keeps_todays(
 def test_each_variant_is_the_stored_numerics_but_for_its_own_change(variant):
     b = budget.get("lesson")
     arms = dc_fit.arms(b, 3, variant)
-    today, today_torch = arms["today"]
-    cheaper, cheaper_torch = arms["cheaper"]
-    assert today_torch and today == dataclasses.replace(dc.preset(b, 3), **dc.STORED_NUMERICS)
+    today, cheaper = arms["today"], arms["cheaper"]
+    assert today == dataclasses.replace(dc.preset(b, 3), **dc.STORED_NUMERICS)
     flow = today.flow_config()
-    assert (flow.step_size, flow.eval_step_size, flow.eval_quadrature) == (0.25, 0.25, 4)
-    if variant == "defaults":           # DC as it is: its own numerics and NumPy's tanh
-        assert cheaper == dc.preset(b, 3) and not cheaper_torch
-        assert dataclasses.replace(cheaper, **dc.STORED_NUMERICS) == today
+    assert (flow.step_size, flow.eval_step_size, flow.eval_quadrature, flow.tanh) == (
+        0.25, 0.25, 4, "torch")
+    assert dataclasses.replace(cheaper, **dc.STORED_NUMERICS) == today
+    if variant == "defaults":           # DC as it is: its own numerics, NumPy's tanh
+        assert cheaper == dc.preset(b, 3) and cheaper.flow_config().tanh == "numpy"
     else:                               # the stored numerics with one change, torch's tanh
-        assert cheaper_torch
-        assert dataclasses.replace(cheaper, **dc.STORED_NUMERICS) == today
         want = dict(dc.STORED_NUMERICS, **dc_fit.VARIANTS[variant])
         flow = cheaper.flow_config()
-        assert (flow.step_size, flow.eval_step_size) == (want["flow_step"], want["reward_step"])
+        assert (flow.step_size, flow.eval_step_size, flow.tanh) == (
+            want["flow_step"], want["reward_step"], "torch")
 
 
-def test_the_stored_arm_runs_with_torchs_tanh_and_the_defaults_with_numpys(monkeypatch):
-    from dc_lesson.density import _trace
+def test_the_stored_arm_fits_with_torchs_tanh_and_the_defaults_with_numpys(monkeypatch):
     seen = []
     real = softflow.fit
 
     def spy(states, config, **kw):
-        seen.append((config.step_size, config.eval_quadrature, _trace._TORCH_TANH))
-        return real(states, config, **kw)
+        seen.append((config.step_size, config.eval_quadrature, config.tanh))
+        flow, log = real(states, config, **kw)
+        assert flow.net.tanh_kernel == config.tanh
+        return flow, log
 
     monkeypatch.setattr(softflow, "fit", spy)
     dc_fit.run("reacher1", seeds=[1], b=budget.get("smoke"), n_episodes=2, log=lambda s: None,
                variant="defaults")
-    assert seen == [(0.5, 3, False), (0.25, 4, True)]     # seed 1: the defaults first
+    assert seen == [(0.5, 3, "numpy"), (0.25, 4, "torch")]     # seed 1: the defaults first
 
 
 def test_an_unknown_variant_is_refused_with_the_choices():

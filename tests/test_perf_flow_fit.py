@@ -21,14 +21,19 @@ def test_the_benchmark_runs_every_variant_and_stores_its_record(tmp_path, monkey
     today = next(iter(flow_fit.VARIANTS))
     assert by[("rk4, step 0.5", 0)]["step_size"] == 0.5
     assert by[("euler, step 0.25", 0)]["solver"] == "euler"
+    assert by[(today, 0)]["step_size"] == 0.25 and by[(flow_fit.DEFAULTS, 0)]["step_size"] == 0.5
     assert by[("rk4, step 0.25, half the iterations", 0)]["iterations"] == \
         max(1, by[(today, 0)]["iterations"] // 2)
     for r in rec["rows"]:
         assert r["fit_seconds"] > 0 and abs(r["nll_own_solver"] - r["nll_reference"]) < 0.5
-    # the reward's solver: every step on every seed, scored against the reference
+    # the reward's solver: every setting on every seed, scored against the reference
     ev = rec["reward_solver"]
-    assert sorted((e["seed"], e["eval_step_size"]) for e in ev) == sorted(
-        (s, x) for s in (0, 1) for x in flow_fit.EVAL_STEPS)
+    assert sorted((e["seed"], e["eval_step_size"], e["nodes"], e["tanh"]) for e in ev) == \
+        sorted((s, *x) for s in (0, 1) for x in flow_fit.EVAL_SETTINGS)
+    table = flow_fit.reward_table(rec)
+    assert [(m["eval_step_size"], m["nodes"], m["tanh"]) for m in table] == \
+        list(flow_fit.EVAL_SETTINGS)
+    assert [m["default"] for m in table].count(True) == 1
     assert all(0 <= e["mean_abs_error"] <= e["max_abs_error"] and e["rank_correlation"] <= 1
                for e in ev)
     assert cli.main(["perf", "flow-fit", "--tasks", "reacher4", "reacher2"]) == 2
@@ -41,16 +46,17 @@ def test_the_reward_accuracy_is_scored_against_the_reference_solver():
     x = torch.randn(300, 2) * torch.tensor([1.0, 0.2])
     flow, _ = softflow.fit(x, softflow.SoftFlowConfig(hidden=(16, 16), iterations=30),
                            progress=False)
-    rows = {r["eval_step_size"]: r for r in flow_fit.eval_accuracy(flow, x[:100],
-                                                                    steps=(0.25, 1.0))}
+    rows = {r["eval_step_size"]: r for r in flow_fit.eval_accuracy(
+        flow, x[:100], settings=((0.25, 4, "torch"), (1.0, 4, "numpy")))}
     assert set(rows) == {0.25, 1.0} and all(r["seconds"] > 0 for r in rows.values())
     assert 0 < rows[0.25]["mean_abs_error"] < 0.01 and rows[0.25]["rank_correlation"] > 0.99
     # a solver that is wrong by a constant keeps the order but not the values
     real = flow.log_prob
     flow.log_prob = lambda s, **kw: real(s, **kw) + (0.5 if kw.get("step_size") else 0.0)
-    off = flow_fit.eval_accuracy(flow, x[:100], steps=(0.25,))[0]
+    off = flow_fit.eval_accuracy(flow, x[:100], settings=((0.25, 4, "torch"),))[0]
     assert off["mean_abs_error"] == pytest.approx(0.5, abs=0.01)
     assert off["rank_correlation"] == pytest.approx(rows[0.25]["rank_correlation"])
+    assert flow.net.tanh_kernel == "torch"          # the flow's own kernel is put back
 
 
 def _row(variant, seed, seconds, nll):

@@ -414,12 +414,33 @@ def test_the_flows_tanh_is_numpys_to_one_ulp_and_torchs_on_request():
     assert torch.equal(ours, torch.from_numpy(np.tanh(x.numpy())))   # NumPy's kernel
     ulp = torch.finfo(torch.float32).eps * theirs.abs().clamp_min(2.0 ** -126)
     assert ((ours - theirs).abs() <= ulp).all()                     # within one ulp
-    with _trace.torch_tanh():
-        assert torch.equal(_trace.tanh(x.clone()), theirs)
+    assert not torch.equal(ours, theirs)
+    assert torch.equal(_trace.tanh(x.clone(), kernel="torch"), theirs)
     with fast.disabled():
         assert torch.equal(_trace.tanh(x.clone()), theirs)
     a = x.clone()
     assert _trace.tanh(a, inplace=True) is a and torch.equal(a, ours)
+
+
+def test_a_flows_tanh_kernel_is_its_own_saved_with_it_and_checked(tmp_path):
+    """A NumPy-tanh flow evaluates with NumPy's kernel (log-densities a hair from the same
+    weights under torch's), keeps it through a file, and an unknown kernel is refused."""
+    cfg = dataclasses.replace(FAST, iterations=20, tanh="numpy")
+    x = torch.randn(300, 3, generator=torch.Generator().manual_seed(0))
+    flow, _ = sf.fit(x, cfg, progress=False)
+    lp = flow.log_prob(x)
+    flow.net.tanh_kernel = "torch"
+    lp_torch = flow.log_prob(x)
+    assert not torch.equal(lp, lp_torch) and torch.allclose(lp, lp_torch, atol=1e-4)
+    flow.net.tanh_kernel = "numpy"
+    sf.save_flow(flow, tmp_path / "f.pt")
+    back = sf.load_flow(tmp_path / "f.pt")
+    assert back.tanh == "numpy" and torch.equal(back.log_prob(x), lp)
+    with pytest.raises(ValueError, match="tanh must be one of"):
+        dataclasses.replace(FAST, tanh="fast")
+    with pytest.raises(ValueError, match="tanh"):
+        sf.fit_more(flow, x, dataclasses.replace(cfg, tanh="torch"), iterations=1,
+                    progress=False)
 
 
 def test_the_flows_tanh_differentiates_as_autograds():

@@ -88,7 +88,7 @@ The paper's averaging is this with u = 0 and x_i reset to z each iteration.
   steps of at most 0.5 between the nodes of a 3-point Gauss-Legendre rule for the trace
   integral (``reward_step``, ``reward_nodes``; against the reference solver about 0.03 nats
   mean error and a rank correlation of 0.99, the order being what the scaled reward reads),
-  and the flow's tanh by NumPy's kernel (``density._trace``).  Runs before 2026-12-04 used
+  and the flow's tanh by NumPy's kernel (``flow_tanh``; ``density._trace``).  Runs before 2026-12-04 used
   steps of 0.25, 4 nodes and torch's tanh (:data:`STORED_NUMERICS`); ``dc-lesson perf dc-fit
   --variant defaults`` compares the two over ten seeds.  Fitted on up to ``flow_states``
   expert states in loop 0 (``flow_iterations``
@@ -150,9 +150,10 @@ _DC_PPO = PPOConfig(n_envs=8, n_steps=250, n_epochs=4, n_minibatches=8, clip_coe
                     anneal_lr=False)
 
 
-# The flow's numerics of every DC run before 2026-12-04 (with torch's tanh in the flow:
-# density._trace.torch_tanh); perf dc-fit and perf runs compare today's defaults with them.
-STORED_NUMERICS = {"flow_step": 0.25, "reward_step": 0.25, "reward_nodes": 4}
+# The flow's numerics of every DC run before 2026-12-04; perf dc-fit and perf runs compare
+# today's defaults with them.
+STORED_NUMERICS = {"flow_step": 0.25, "reward_step": 0.25, "reward_nodes": 4,
+                   "flow_tanh": "torch"}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -172,6 +173,7 @@ class DCConfig:
     #                              much for a held-out NLL no better; dc-lesson perf flow-fit)
     reward_step: float = 0.5     # largest rk4 step of log P_w's evaluation, the reward
     reward_nodes: int = 3        # Gauss-Legendre nodes of the reward's trace integral
+    flow_tanh: str = "numpy"     # the flow's tanh kernel (density._trace): NumPy's or torch's
     # Algorithm 2
     update: str = "average"      # "average" (the paper) or "admm" (consensus ADMM with duals)
     rho: float = 1.0             # ADMM's penalty (update="admm" only)
@@ -211,6 +213,9 @@ class DCConfig:
             if getattr(self, name) < 1:
                 raise ValueError(f"DCConfig.{name} must be at least 1, got "
                                  f"{getattr(self, name)}")
+        if self.flow_tanh not in _softflow._trace.KERNELS:
+            raise ValueError(f"DCConfig.flow_tanh must be one of {_softflow._trace.KERNELS}, "
+                             f"got {self.flow_tanh!r}")
         if not (self.lr > 0 and self.rho > 0):
             raise ValueError(f"lr and rho must be positive, got {self.lr} and {self.rho}")
 
@@ -241,7 +246,8 @@ class DCConfig:
                                         lr=self.flow_lr, iterations=self.flow_iterations,
                                         solver="rk4", step_size=self.flow_step,
                                         eval_step_size=self.reward_step,
-                                        eval_quadrature=self.reward_nodes, seed=self.seed)
+                                        eval_quadrature=self.reward_nodes,
+                                        tanh=self.flow_tanh, seed=self.seed)
 
     def env_steps(self, task: str) -> int:
         """Environment interactions of a whole run: the policy batches plus the learner

@@ -6,18 +6,15 @@ of a concat-squash MLP is a product of per-layer factors diag(s_k) W_k, so its t
 of asking autograd for D vector-Jacobian products.  ``tests/test_softflow.py`` checks every
 kernel against ``torch.func`` and the naive autograd loop.
 
-**The activation.**  The hidden layers' tanh is NumPy's (:func:`tanh`): on this project's CPUs
-torch's float32 tanh costs about 3.5 ns an element and NumPy's SIMD kernel about 0.4, and the
-tanh was half of evaluating log P_w.  Both are accurate to about one unit in the last place,
-so they agree except in the last bit of about a third of the values; its derivative is
-autograd's own (``tanh_backward``, from the output).  ``dc_lesson.nn.fast.disabled()`` and
-:func:`torch_tanh` switch back to torch's kernel, the numerics every fit used before
-2026-12-04 (so that the stored cells of that code stay reproducible).
+**The activation.**  A flow's hidden tanh is torch's or, with ``tanh="numpy"`` (DC's choice),
+NumPy's (:func:`tanh`): on this project's CPUs torch's float32 tanh costs about 3.5 ns an
+element and NumPy's SIMD kernel about 0.4, and the tanh was half of evaluating log P_w.  Both
+are accurate to about one unit in the last place, so they agree except in the last bit of
+about a third of the values; the derivative is autograd's own (``tanh_backward``, from the
+output).  ``dc_lesson.nn.fast.disabled()`` switches every flow to torch's kernel.
 """
 
 from __future__ import annotations
-
-import contextlib
 
 import numpy as np
 import torch
@@ -25,19 +22,7 @@ import torch
 from dc_lesson.nn import fast as _fast
 
 _ONE = torch.tensor(1.0)
-_TORCH_TANH = False
-
-
-@contextlib.contextmanager
-def torch_tanh():
-    """Within the block the flows' hidden layers use torch's tanh (the numerics of every fit
-    before 2026-12-04), not NumPy's."""
-    global _TORCH_TANH
-    old, _TORCH_TANH = _TORCH_TANH, True
-    try:
-        yield
-    finally:
-        _TORCH_TANH = old
+KERNELS = ("torch", "numpy")   # a flow's tanh
 
 
 class _NumpyTanh(torch.autograd.Function):
@@ -56,11 +41,10 @@ class _NumpyTanh(torch.autograd.Function):
         return torch.ops.aten.tanh_backward(grad, h)
 
 
-def tanh(a: torch.Tensor, inplace: bool = False) -> torch.Tensor:
-    """The hidden layers' tanh: NumPy's kernel (differentiable), or torch's under
-    :func:`torch_tanh` or ``fast.disabled()``.  ``inplace`` (only without autograd) overwrites
-    ``a``."""
-    if _TORCH_TANH or not _fast.enabled():
+def tanh(a: torch.Tensor, inplace: bool = False, kernel: str = "numpy") -> torch.Tensor:
+    """tanh by ``kernel``: ``"numpy"`` (differentiable; torch's under ``fast.disabled()``) or
+    ``"torch"``.  ``inplace`` (only without autograd) may overwrite ``a``."""
+    if kernel == "torch" or not _fast.enabled():
         return a.tanh_() if inplace else torch.tanh(a)
     if torch.is_grad_enabled() and a.requires_grad:
         return _NumpyTanh.apply(a)
@@ -100,6 +84,7 @@ def evaluate(net, t: torch.Tensor, z: torch.Tensor, context: list, trace: str | 
     # the per-state gate geff with d a_k / d h_{k-1} = diag(geff) weff, and per hidden layer
     # s_k = tanh'(a_k) * geff, so that d h_k / d h_{k-1} = diag(s_k) weff.
     weffs, geffs, slopes = [], [], []
+    kernel = getattr(net, "tanh_kernel", "torch")
     h, n = z, len(net.layers)
     for k, (layer, (gt, gr, bt, br)) in enumerate(zip(net.layers, context)):
         w, b = layer.layer.weight, layer.layer.bias   # (out, in), (out,)
@@ -117,7 +102,7 @@ def evaluate(net, t: torch.Tensor, z: torch.Tensor, context: list, trace: str | 
         geffs.append(geff)
         if k == n - 1:
             break
-        h = tanh(a, inplace)
+        h = tanh(a, inplace, kernel)
         if trace is not None:
             s = torch.addcmul(_ONE, h, h, value=-1.0)  # tanh' = 1 - h^2
             slopes.append(s if geff is None else s * geff)

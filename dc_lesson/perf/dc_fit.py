@@ -23,7 +23,6 @@ now is by default (steps 0.5, 3 nodes, NumPy's tanh in the flow), the change's o
 
 from __future__ import annotations
 
-import contextlib
 import copy
 import dataclasses
 import time
@@ -33,31 +32,28 @@ import torch
 
 from dc_lesson import algorithms, budget as _budget, data
 from dc_lesson.algorithms import dc as _dc
-from dc_lesson.density import _trace
 from dc_lesson.evaluation import evaluate, stats
 from dc_lesson.storage import check_writable, write_result
 
 # The variants, as changes to the stored numerics (dc.STORED_NUMERICS, torch's tanh);
-# "defaults": DC's defaults as they are, NumPy's tanh (None: no change to the preset).
+# "defaults": DC's defaults as they are (None: the preset unchanged).
 VARIANTS = {"fit": {"flow_step": 0.5},                          # the training solver only
             "fit+reward": {"flow_step": 0.5, "reward_step": 0.5},   # and the reward's too
             "defaults": None}                                   # today's defaults
 
 
 def arms(b: _budget.Budget, seed: int, variant: str) -> dict:
-    """``{"today": (config, torch_tanh), "cheaper": (config, torch_tanh)}`` of a seed."""
+    """``{"today": config, "cheaper": config}`` of a seed (see the module's docstring)."""
     stored = dataclasses.replace(_dc.preset(b, seed), **_dc.STORED_NUMERICS)
     change = VARIANTS[variant]
-    cheaper = ((_dc.preset(b, seed), False) if change is None
-               else (dataclasses.replace(stored, **change), True))
-    return {"today": (stored, True), "cheaper": cheaper}
+    cheaper = _dc.preset(b, seed) if change is None else dataclasses.replace(stored, **change)
+    return {"today": stored, "cheaper": cheaper}
 
 
-def _run(task, demos, config, start, n_episodes: int, torch_tanh: bool) -> dict:
+def _run(task, demos, config, start, n_episodes: int) -> dict:
     t0 = time.perf_counter()
-    with (_trace.torch_tanh() if torch_tanh else contextlib.nullcontext()):
-        policy = algorithms.get("dc").train(task, demos, config, policy=copy.deepcopy(start),
-                                            progress=False).policy
+    policy = algorithms.get("dc").train(task, demos, config, policy=copy.deepcopy(start),
+                                        progress=False).policy
     seconds = time.perf_counter() - t0
     ev = evaluate.evaluate_policy(task, policy, n_episodes=n_episodes, divergences=False)
     return {"seconds": seconds, "scaled_return": float(ev["scaled_return"])}
@@ -77,8 +73,8 @@ def run(task: str = "reacher4", seeds=range(5), b: _budget.Budget | None = None,
         start = algorithms.bc.warm_start_policy(demos, seed, max_epochs=b.bc_max_epochs)
         order = list(arms(b, seed, variant).items())
         row = {"seed": int(seed)}
-        for name, (cfg, torch_tanh) in (order if seed % 2 == 0 else order[::-1]):
-            row[name] = _run(task, demos, cfg, start, n_episodes, torch_tanh)
+        for name, cfg in (order if seed % 2 == 0 else order[::-1]):
+            row[name] = _run(task, demos, cfg, start, n_episodes)
         rows.append(row)
         log(f"seed {seed}: today {row['today']['seconds']:.1f} s, scaled return "
             f"{row['today']['scaled_return']:.3f}; cheaper ({variant}) "

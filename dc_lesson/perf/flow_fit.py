@@ -10,19 +10,23 @@ integrated jointly), so that a coarse training solver cannot look good by exploi
 evaluation.
 
 It also asks the reward's question (issue 14: "the log P reward ... with the fast solver at
-the accuracy the reward needs"): for today's fit of each seed, :func:`eval_accuracy` times
-log P_w of the held-out states at each rk4 step of :data:`EVAL_STEPS` (the reward's solver
-today: step 0.25) and scores it against the reference solver: the mean and largest absolute
-error in nats and the rank correlation, since DC's scaled reward reads log P_w through its
-quantiles, so the order of the states is what it uses.  (Held-out expert states; a learner's
-states off the expert's manifold may fare worse.)
+the accuracy the reward needs"): for the fit DC now makes (its defaults) of each seed,
+:func:`eval_accuracy` times log P_w of the held-out states under each reward setting of
+:data:`EVAL_SETTINGS` (the largest rk4 step, the Gauss-Legendre nodes of the trace integral,
+the tanh kernel) and scores it against the reference solver (dopri5 at 1e-5, the trace
+integrated jointly, torch's tanh): the mean and largest absolute error in nats and the rank
+correlation, since DC's scaled reward reads log P_w through its quantiles, so the order of the
+states is what it uses.  (Held-out expert states; a learner's states off the expert's manifold
+may fare worse.)
 
-Variants (:data:`VARIANTS`): today's (rk4, step 0.25: four steps of the ODE), rk4 at step 0.5
-(two steps), Euler at step 0.25, and today's solver with half the iterations.  Per variant and
-seed: fit seconds, both held-out NLLs; the table gives the time ratio to today's and the
-reference NLL's change (positive: worse), and :func:`cheapest_within` names the cheapest
-variant whose reference NLL is no worse than today's by more than ``TOLERANCE`` nats on every
-seed.  Times are one torch thread; they drift with the machine's load, the ratios less so.
+Variants (:data:`VARIANTS`), as changes to the fit every stored DC run made
+(``dc.STORED_NUMERICS``: rk4 at step 0.25, four steps of the ODE, torch's tanh): rk4 at step
+0.5 (two steps), Euler at step 0.25, half the iterations, and DC's defaults today (step 0.5,
+NumPy's tanh).  Per variant and seed: fit seconds, both held-out NLLs; the table gives the
+time ratio to the stored fit and the reference NLL's change (positive: worse), and
+:func:`cheapest_within` names the cheapest variant whose reference NLL is no worse than the
+stored fit's by more than ``TOLERANCE`` nats on every seed.  Times are one torch thread; they
+drift with the machine's load, the ratios less so.
 """
 
 from __future__ import annotations
@@ -41,38 +45,54 @@ from dc_lesson.storage import check_writable, write_result
 
 TOLERANCE = 0.1   # nats of held-out NLL (reference solver) a cheaper fit may lose
 
-# name -> changes to DC's flow config (today's: no change)
+# name -> changes to the stored runs' flow config (the first: no change)
 VARIANTS = {
-    "today: rk4, step 0.25": {},
+    "stored: rk4, step 0.25": {},
     "rk4, step 0.5": {"step_size": 0.5},
     "euler, step 0.25": {"solver": "euler"},
     "rk4, step 0.25, half the iterations": {"iterations": "half"},
+    "DC's defaults: rk4, step 0.5, NumPy's tanh": {"step_size": 0.5, "tanh": "numpy"},
 }
+DEFAULTS = "DC's defaults: rk4, step 0.5, NumPy's tanh"   # the fit the reward is scored on
 
-
-EVAL_STEPS = (0.25, 0.5, 1.0)   # rk4 steps of the reward's log P_w (today's: 0.25)
+# The reward's settings scored: (largest rk4 step, Gauss-Legendre nodes, tanh kernel); the
+# stored runs' first, DC's defaults marked.
+EVAL_SETTINGS = ((0.25, 4, "torch"), (0.5, 4, "torch"), (0.5, 3, "torch"), (0.5, 3, "numpy"),
+                 (0.5, 2, "numpy"))
+REWARD_DEFAULT = (0.5, 3, "numpy")
 
 
 def _ranks(x: np.ndarray) -> np.ndarray:
     return np.argsort(np.argsort(x)).astype(float)
 
 
-def eval_accuracy(flow, states: torch.Tensor, steps=EVAL_STEPS) -> list[dict]:
-    """log P_w of ``states`` at each rk4 step against the reference solver (dopri5 at 1e-5,
-    the trace integrated jointly): seconds, mean and largest absolute error (nats), Spearman's
-    rank correlation."""
-    with torch.no_grad():
-        ref = flow.log_prob(states, solver="dopri5", rtol=1e-5, atol=1e-5,
-                            quadrature=None).numpy().astype(float)
-        rows = []
-        for step in steps:
-            t0 = time.perf_counter()
-            lp = flow.log_prob(states, solver="rk4", step_size=step).numpy().astype(float)
-            seconds = time.perf_counter() - t0
-            err = np.abs(lp - ref)
-            rows.append({"eval_step_size": float(step), "seconds": seconds,
-                         "mean_abs_error": float(err.mean()), "max_abs_error": float(err.max()),
-                         "rank_correlation": float(np.corrcoef(_ranks(lp), _ranks(ref))[0, 1])})
+def eval_accuracy(flow, states: torch.Tensor, settings=EVAL_SETTINGS) -> list[dict]:
+    """log P_w of ``states`` under each (rk4 step, nodes, tanh kernel) against the reference
+    solver (dopri5 at 1e-5, the trace integrated jointly, torch's tanh): seconds, mean and
+    largest absolute error (nats), Spearman's rank correlation."""
+    own = flow.net.tanh_kernel
+    try:
+        with torch.no_grad():
+            flow.net.tanh_kernel = "torch"
+            ref = flow.log_prob(states, solver="dopri5", rtol=1e-5, atol=1e-5,
+                                quadrature=None).numpy().astype(float)
+            rows = []
+            for step, nodes, kernel in settings:
+                flow.net.tanh_kernel = kernel
+                flow.log_prob(states[:16], solver="rk4", step_size=step, quadrature=nodes)
+                t0 = time.perf_counter()
+                lp = flow.log_prob(states, solver="rk4", step_size=step,
+                                   quadrature=nodes).numpy().astype(float)
+                seconds = time.perf_counter() - t0
+                err = np.abs(lp - ref)
+                rows.append({"eval_step_size": float(step), "nodes": int(nodes),
+                             "tanh": kernel, "seconds": seconds,
+                             "mean_abs_error": float(err.mean()),
+                             "max_abs_error": float(err.max()),
+                             "rank_correlation": float(np.corrcoef(_ranks(lp),
+                                                                   _ranks(ref))[0, 1])})
+    finally:
+        flow.net.tanh_kernel = own
     return rows
 
 
@@ -86,7 +106,7 @@ def _states(task: str, n_train: int, n_test: int, seed: int = 0):
 
 
 def _config(b: _budget.Budget, changes: dict, seed: int) -> _sf.SoftFlowConfig:
-    base = _dc.preset(b, seed).flow_config()
+    base = dataclasses.replace(_dc.preset(b, seed), **_dc.STORED_NUMERICS).flow_config()
     changes = dict(changes)
     if changes.get("iterations") == "half":
         changes["iterations"] = max(1, base.iterations // 2)
@@ -109,7 +129,7 @@ def run(task: str = "reacher4", seeds=(0, 1), b: _budget.Budget | None = None,
             t0 = time.perf_counter()
             flow, _ = _sf.fit(train, cfg, progress=False)
             fit_s = time.perf_counter() - t0
-            if not changes:     # today's fit: how accurate is the reward at each step
+            if name == DEFAULTS:     # DC's fit: how accurate is the reward at each setting
                 evals += [{"seed": int(seed), **e} for e in eval_accuracy(flow, test)]
             with torch.no_grad():
                 own = float(-flow.log_prob(test).mean())
@@ -162,17 +182,29 @@ def format_table(result: dict) -> str:
                      f"{s['nll_reference']:>10.3f}{s['worst_nll_change']:>+14.3f}")
     best = cheapest_within(result["summary"], result["tolerance"])
     lines.append(f"cheapest within {result['tolerance']} nats of today's on every seed: {best}")
-    lines.append("the reward's log P_w of today's fit, by rk4 step, against the reference "
+    lines.append("the reward's log P_w of DC's fit, by setting, against the reference "
                  "(means over seeds):")
-    lines.append(f"{'step':>6}{'seconds':>9}{'mean |error|':>14}{'max |error|':>13}"
-                 f"{'rank corr.':>12}")
-    for step in sorted({e["eval_step_size"] for e in result.get("reward_solver", [])}):
-        es = [e for e in result["reward_solver"] if e["eval_step_size"] == step]
-        m = {k: float(np.mean([e[k] for e in es])) for k in
-             ("seconds", "mean_abs_error", "max_abs_error", "rank_correlation")}
-        lines.append(f"{step:>6.2f}{m['seconds']:>9.2f}{m['mean_abs_error']:>14.4f}"
+    lines.append(f"{'step':>6}{'nodes':>6}{'tanh':>7}{'seconds':>9}{'mean |error|':>14}"
+                 f"{'max |error|':>13}{'rank corr.':>12}")
+    for m in reward_table(result):
+        lines.append(f"{m['eval_step_size']:>6.2f}{m['nodes']:>6}{m['tanh']:>7}"
+                     f"{m['seconds']:>9.3f}{m['mean_abs_error']:>14.4f}"
                      f"{m['max_abs_error']:>13.4f}{m['rank_correlation']:>12.5f}")
     return "\n".join(lines)
+
+
+def reward_table(result: dict) -> list[dict]:
+    """The reward's accuracy per setting, means over seeds, in :data:`EVAL_SETTINGS`' order
+    (records from before the nodes and kernel were scored count as 4 nodes, torch's tanh)."""
+    keys = ("seconds", "mean_abs_error", "max_abs_error", "rank_correlation")
+    groups: dict = {}
+    for e in result.get("reward_solver", []):
+        k = (e["eval_step_size"], e.get("nodes", 4), e.get("tanh", "torch"))
+        groups.setdefault(k, []).append(e)
+    return [{"eval_step_size": k[0], "nodes": k[1], "tanh": k[2],
+             "default": k == REWARD_DEFAULT,
+             **{x: float(np.mean([e[x] for e in es])) for x in keys}}
+            for k, es in groups.items()]
 
 
 def main(tasks=None, seeds=(0, 1), out=None, command: str = "dc-lesson perf flow-fit") -> dict:
@@ -189,5 +221,6 @@ def main(tasks=None, seeds=(0, 1), out=None, command: str = "dc-lesson perf flow
     return result
 
 
-__all__ = ["EVAL_STEPS", "TOLERANCE", "VARIANTS", "cheapest_within", "eval_accuracy",
-           "format_table", "main", "run", "summarise"]
+__all__ = ["DEFAULTS", "EVAL_SETTINGS", "REWARD_DEFAULT", "TOLERANCE", "VARIANTS",
+           "cheapest_within", "eval_accuracy", "format_table", "main", "reward_table", "run",
+           "summarise"]

@@ -16,9 +16,14 @@ trees alternate which goes first; the table gives medians, the ratio before / to
 environment steps per second including the updates.  BC runs a fixed 20 epochs (its early
 stopping would otherwise stop the two codes at different epochs); the others run their whole
 preset, the same work in both trees (the run prints each tree's config and the benchmark
-refuses a pair whose configs differ in anything but fields the older code lacks).  On request,
-``dc-cheaper``: today's DC with the cheaper solver steps (``flow_step`` and ``reward_step``
-0.5, what ``perf dc-fit --variant fit+reward`` checks) against the earlier code's DC.
+refuses a pair whose configs differ in anything but fields the older code lacks).
+
+DC is the exception, said in its row's ``note``: its flow's numerics became settings with new
+defaults on 2026-12-04 (training and reward solver steps 0.5, 3 nodes for the reward's trace,
+NumPy's tanh: ``dc.STORED_NUMERICS`` holds the old ones), so today's DC does less arithmetic
+for the same interactions; ``perf dc-fit --variant defaults`` checks that it learns the same.
+On request, ``dc-stored``: today's code with the stored numerics, against the earlier code's
+DC (what the code alone gained).
 """
 
 from __future__ import annotations
@@ -38,9 +43,12 @@ from dc_lesson.storage import check_writable, write_result
 
 TASKS = ("reacher4",)
 LEARNERS = ("bc", "ppo", "gail", "dc")
-# On request: DC with the cheaper solver steps where the code has them (flow_step and
-# reward_step 0.5, perf dc-fit's "fit+reward"), against the earlier code's only DC.
-EXTRA = ("dc-cheaper",)
+# On request: today's DC with the flow numerics of the earlier code (dc.STORED_NUMERICS).
+EXTRA = ("dc-stored",)
+NOTES = {"dc": "today's DC defaults: the flow's solver steps 0.5, 3 reward nodes, NumPy's tanh "
+               "(before: 0.25, 4 nodes, torch's tanh); learning kept: perf dc-fit --variant "
+               "defaults",
+         "dc-stored": "today's code with the earlier flow numerics (dc.STORED_NUMERICS)"}
 ISSUE_14 = "7445a95"   # the revision issue 14 was filed against
 
 # Runs in a fresh process, in either tree: only the interface both revisions share.
@@ -51,15 +59,16 @@ torch.set_num_threads(1)
 import dc_lesson
 from dc_lesson import algorithms, budget, data
 name, task = sys.argv[1], sys.argv[2]
-cheaper = name == "dc-cheaper"
-name = "dc" if cheaper else name
+stored = name == "dc-stored"
+name = "dc" if stored else name
 b = budget.get("lesson")
 algo = algorithms.get(name)
 cfg = algo.preset(b, 0)
 if name == "bc":
     cfg = dataclasses.replace(cfg, epochs=20, patience=10 ** 6)
-if cheaper and hasattr(cfg, "reward_step"):   # code without the settings runs its only DC
-    cfg = dataclasses.replace(cfg, flow_step=0.5, reward_step=0.5)
+numerics = getattr(sys.modules[type(cfg).__module__], "STORED_NUMERICS", None)
+if stored and numerics:   # code without the settings runs its only DC
+    cfg = dataclasses.replace(cfg, **numerics)
 demos = data.load_demos(task, n_trajectories=b.il_demos) if algo.uses_demos else None
 start = None
 if name in ("gail", "dc"):
@@ -176,7 +185,7 @@ def benchmark(before: str = ISSUE_14, tasks=TASKS, learners=LEARNERS, repeats: i
             if diffs:
                 raise RuntimeError(f"{name} on {task} does different work in the two trees: "
                                    + "; ".join(diffs))
-            kind = "dc" if name == "dc-cheaper" else name
+            kind = "dc" if name == "dc-stored" else name
             cfg = algorithms.get(kind).preset(b, 0)
             steps = {"bc": 0, "ppo": getattr(cfg, "total_steps", 0),
                      "gail": cfg.ppo.total_steps if kind == "gail" else 0,
@@ -190,6 +199,8 @@ def benchmark(before: str = ISSUE_14, tasks=TASKS, learners=LEARNERS, repeats: i
                    "steps_per_s_before": steps / med["before"] if steps else None,
                    "steps_per_s_today": steps / med["today"] if steps else None,
                    "runs": sec, "repeats": repeats}
+            if name in NOTES:
+                row["note"] = NOTES[name]
             rows.append(row)
             log(format_row(row))
     return rows
@@ -227,5 +238,5 @@ def main(before=None, tasks=None, learners=None, repeats: int = 2, out=None,
     return rows
 
 
-__all__ = ["EXTRA", "ISSUE_14", "LEARNERS", "RevisionError", "TASKS", "benchmark", "extract",
+__all__ = ["EXTRA", "ISSUE_14", "LEARNERS", "NOTES", "RevisionError", "TASKS", "benchmark", "extract",
            "format_row", "in_words", "main", "run_in", "same_work"]
