@@ -181,7 +181,8 @@ def format_table(result: dict) -> str:
         lines.append(f"{s['variant']:<38}{s['fit_seconds']:>8.1f}{s['speedup']:>9.2f}x"
                      f"{s['nll_reference']:>10.3f}{s['worst_nll_change']:>+14.3f}")
     best = cheapest_within(result["summary"], result["tolerance"])
-    lines.append(f"cheapest within {result['tolerance']} nats of today's on every seed: {best}")
+    lines.append(f"cheapest within {result['tolerance']} nats of the stored fit on every "
+                 f"seed: {best}")
     lines.append("the reward's log P_w of DC's fit, by setting, against the reference "
                  "(means over seeds):")
     lines.append(f"{'step':>6}{'nodes':>6}{'tanh':>7}{'seconds':>9}{'mean |error|':>14}"
