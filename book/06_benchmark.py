@@ -78,7 +78,7 @@ import pandas as pd
 from IPython.display import Markdown, display
 
 from dc_lesson import budget as _budget, notebook
-from dc_lesson.experiments import table_one, table_three
+from dc_lesson.experiments import aggregate, table_one, table_three
 from dc_lesson.experiments.studies import table3 as study
 
 CHAPTER_START = time.perf_counter()
@@ -162,6 +162,7 @@ if t3 is None:
         "`dc-lesson sweep table3 && dc-lesson aggregate table3` (or `--partial` for the "
         "cells that have run). Until then this section shows the paper's values only."))
 else:
+    print(table_one.status(t3))
     frame = pd.DataFrame(table_three.table(t3))
     if len(frame):
         # the paper's layout: its column order, then the expert scored like a learner (the
@@ -472,8 +473,10 @@ if not abl:
           "dc-lesson aggregate dc_ablation (and dc_lr, gail_lr; --partial for what has run)")
 else:
     for key, rec in abl.items():
+        stale = aggregate.freshness(rec)
         print(f"{rec['benchmark']}: {rec['cells']['n']} of {rec['cells']['of']} cells, "
-              f"seeds {rec['seeds']}" + ("" if rec["complete"] else " (still accumulating)"))
+              f"seeds {rec['seeds']}" + ("" if rec["complete"] else " (still accumulating)")
+              + (f"; {stale}" if stale else ""))
     display(pd.DataFrame(ablations.rows_table(abl)).set_index("row"))
 abl_obs = ablations.observations(abl)
 abl_start = [o["scaled_return"] for o in abl_obs if o["row"] == "bc"]

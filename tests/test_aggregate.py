@@ -59,3 +59,21 @@ def test_report_renders_from_an_aggregate():
         report.row(agg, task="t")
     (p,) = aggregate.paired(_obs(), "dc", "bc", measures=("emd",))
     assert report.fmt_entry(p, "emd", 2).startswith("-0.02")
+
+
+def test_an_aggregate_whose_grid_moved_on_says_so(tmp_path):
+    """A stored aggregate of the cells on record says nothing; once a setting changes (new
+    config hashes) the same record is told apart from today's grid, with the count and the
+    command that would bring it up to date."""
+    from dc_lesson.experiments import aggregate, studies
+    b = budget.get("smoke")
+    grid = [c for c in studies.get("dc_lr").grid(b) if c.study == "dc_lr"]
+    rec = {"benchmark": "dc_lr", "budget": "smoke", "cells": {"n": 2, "of": len(grid)}}
+    for c in grid[:2]:
+        c.path(tmp_path).parent.mkdir(parents=True, exist_ok=True)
+        c.path(tmp_path).write_text("{}")
+    assert aggregate.todays_grid(rec, tmp_path) == (2, len(grid))
+    assert aggregate.freshness(rec, tmp_path) == ""
+    grid[0].path(tmp_path).unlink()            # a cell of the old grid is not of today's
+    said = aggregate.freshness(rec, tmp_path)
+    assert f"1 of its {len(grid)} dc_lr cells" in said and "dc-lesson aggregate dc_lr" in said

@@ -135,6 +135,28 @@ def grid_records(study: _cells.Study, b: _budget.Budget, root=None,
     return [_cells.read_record(c.path(root)) for c in grid]
 
 
+def todays_grid(rec: dict, root=None) -> tuple[int, int]:
+    """``(done, of)``: how many cells of today's grid for a stored aggregate's study and budget
+    have a record.  A changed setting gives new cells (new config hashes), so an aggregate of
+    the earlier ones can outlive its grid while the new one runs."""
+    from dc_lesson.experiments import studies
+    study = studies.get(rec["benchmark"])
+    grid = [c for c in study.grid(_budget.get(rec["budget"])) if c.study == study.name]
+    return sum(c.path(root).exists() for c in grid), len(grid)
+
+
+def freshness(rec: dict, root=None) -> str:
+    """"" when a stored aggregate is of today's grid; else a sentence saying how far today's
+    grid has run and that the numbers shown are the stored aggregate's."""
+    done, of = todays_grid(rec, root)
+    if done == rec["cells"]["n"] and of == rec["cells"].get("of", of):
+        return ""
+    return (f"today's code has {done} of its {of} {rec['benchmark']} cells on record (a "
+            f"changed setting gives new cells; they are being computed): the numbers shown "
+            f"are the stored aggregate's, until `dc-lesson aggregate {rec['benchmark']}` "
+            f"reruns on today's grid")
+
+
 def write(study_name: str, b: _budget.Budget | None = None, *, root=None, results=None,
           command: str = "", partial: bool = False) -> pathlib.Path:
     """Aggregates a complete study and writes ``RESULTS/STUDY.json``; returns the path.
@@ -211,5 +233,4 @@ def costs(study: str, budget_name: str, since: str | None = None,
     return out
 
 
-__all__ = ["costs", "AggregateError", "KEY", "MEASURES", "grid_records", "iqm_over_tasks", "observation",
-           "paired", "table", "write"]
+__all__ = ["AggregateError", "KEY", "MEASURES", "costs", "freshness", "grid_records", "iqm_over_tasks", "observation", "paired", "table", "todays_grid", "write"]

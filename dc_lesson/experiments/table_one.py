@@ -95,8 +95,11 @@ def status(rec: dict) -> str:
     """``N of M cells (complete|still accumulating), budget, revision``."""
     c = rec["cells"]
     done = "complete" if rec.get("complete", True) else "still accumulating"
+    from dc_lesson.experiments import aggregate
+    stale = aggregate.freshness(rec)
     return (f"{c['n']} of {c.get('of', c['n'])} cells ({done}), budget {rec['budget']}, "
-            f"{c['wall_seconds'] / 3600:.1f} CPU-hours of cells; {rec['command']}")
+            f"{c['wall_seconds'] / 3600:.1f} CPU-hours of cells; {rec['command']}"
+            + (f"\n{stale}" if stale else ""))
 
 
 def _order(row: str) -> int:
