@@ -423,7 +423,6 @@ class SoftFlow(nn.Module):
         self.eval_solver, self.eval_step_size = eval_solver, float(eval_step_size)
         self.eval_rtol, self.eval_atol = float(eval_rtol), float(eval_atol)
         self.eval_quadrature = self._config["eval_quadrature"]
-        self.tanh = tanh
         self.net = ODENet(dim, hidden, tanh)
         self.register_buffer("mean", torch.zeros(dim, dtype=torch.float64))
         self.register_buffer("std", torch.ones(dim, dtype=torch.float64))
@@ -433,6 +432,11 @@ class SoftFlow(nn.Module):
     def config(self) -> dict:
         """The constructor arguments, JSON-able: ``SoftFlow(**flow.config())`` rebuilds it."""
         return dict(self._config)
+
+    @property
+    def tanh(self) -> str:
+        """The hidden layers' tanh kernel (the network's, which evaluate() reads)."""
+        return self.net.tanh_kernel
 
     # standardisation
     @torch.no_grad()

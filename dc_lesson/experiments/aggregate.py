@@ -116,11 +116,16 @@ def iqm_over_tasks(obs: list[dict], row: str, measure: str = "scaled_return") ->
             **stats.iqm_ci(x).to_dict()}
 
 
+def _own_cells(study: _cells.Study, b: _budget.Budget) -> list:
+    """The study's own cells at a budget (not the cells of other studies it reads)."""
+    return [c for c in study.grid(b) if c.study == study.name]
+
+
 def grid_records(study: _cells.Study, b: _budget.Budget, root=None,
                  partial: bool = False) -> list[dict]:
     """The records of the study's current grid; fails, naming the command, if any is missing
     (with ``partial``: the records that exist, none of the missing ones invented)."""
-    grid = [c for c in study.grid(b) if c.study == study.name]
+    grid = _own_cells(study, b)
     missing = [c for c in grid if not c.path(root).exists()]
     if partial:
         if len(missing) == len(grid):
@@ -141,7 +146,7 @@ def todays_grid(rec: dict, root=None) -> tuple[int, int]:
     the earlier ones can outlive its grid while the new one runs."""
     from dc_lesson.experiments import studies
     study = studies.get(rec["benchmark"])
-    grid = [c for c in study.grid(_budget.get(rec["budget"])) if c.study == study.name]
+    grid = _own_cells(study, _budget.get(rec["budget"]))
     return sum(c.path(root).exists() for c in grid), len(grid)
 
 
@@ -169,7 +174,7 @@ def write(study_name: str, b: _budget.Budget | None = None, *, root=None, result
     if study.aggregate is None:
         raise AggregateError(f"study {study.name} has no aggregate (it is read by others)")
     recs = grid_records(study, b, root, partial=partial)
-    n_grid = len([c for c in study.grid(b) if c.study == study.name])
+    n_grid = len(_own_cells(study, b))
     payload = study.aggregate(recs, b)
     path = pathlib.Path(results or storage.RESULTS) / (study.result_file or
                                                        f"{study.name}.json")
@@ -233,4 +238,5 @@ def costs(study: str, budget_name: str, since: str | None = None,
     return out
 
 
-__all__ = ["AggregateError", "KEY", "MEASURES", "costs", "freshness", "grid_records", "iqm_over_tasks", "observation", "paired", "table", "todays_grid", "write"]
+__all__ = ["AggregateError", "KEY", "MEASURES", "costs", "freshness", "grid_records",
+           "iqm_over_tasks", "observation", "paired", "table", "todays_grid", "write"]
