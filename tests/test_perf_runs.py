@@ -54,3 +54,26 @@ def test_the_chapters_words_name_the_longest_run_and_any_learner_no_faster():
     words = runs.in_words(rows)
     assert "every learner" not in words
     assert "no faster than with the earlier code: bc on reacher4" in words
+
+
+@pytest.mark.parametrize("name, numerics", [("dc-stored", "stored"), ("dc", "today")])
+def test_the_dc_stored_run_trains_todays_dc_with_the_stored_numerics(name, numerics, monkeypatch,
+                                                                      capsys):
+    # The run's own snippet, in-process, with training and the warm start stubbed out: what
+    # reaches ``train`` is the config the timed run would use.
+    import dataclasses, json, sys
+    from dc_lesson import algorithms
+    from dc_lesson.algorithms import dc
+    seen = {}
+    stub = lambda task, demos, cfg, **kw: seen.update(cfg=cfg)
+    monkeypatch.setitem(algorithms.ALGORITHMS, "dc",
+                        dataclasses.replace(algorithms.ALGORITHMS["dc"], train=stub))
+    monkeypatch.setattr(algorithms.bc, "warm_start_policy", lambda *a, **kw: None)
+    monkeypatch.setattr(sys, "argv", ["snippet", name, "reacher1"])
+    exec(compile(runs._SNIPPET, "perf-runs-snippet", "exec"), {})
+    got = {k: getattr(seen["cfg"], k) for k in dc.STORED_NUMERICS}
+    today = {k: getattr(dc.DCConfig(), k) for k in dc.STORED_NUMERICS}
+    assert got == (dc.STORED_NUMERICS if numerics == "stored" else today)
+    assert today != dc.STORED_NUMERICS       # else the two runs would time the same thing
+    printed = json.loads(capsys.readouterr().out)
+    assert {k: printed["config"][k] for k in got} == got
