@@ -2,11 +2,17 @@
 The earlier code really is the one that runs (its own package, in a fresh process), the two
 trees must do the same work, and bad revisions or learners are refused with the fix."""
 
+import dataclasses
+import json
 import pathlib
 import subprocess
+import sys
 
 import pytest
+import torch
 
+from dc_lesson import algorithms
+from dc_lesson.algorithms import dc
 from dc_lesson.perf import runs
 
 ROOT = pathlib.Path(runs.__file__).resolve().parents[2]
@@ -61,16 +67,17 @@ def test_the_dc_stored_run_trains_todays_dc_with_the_stored_numerics(name, numer
                                                                       capsys):
     # The run's own snippet, in-process, with training and the warm start stubbed out: what
     # reaches ``train`` is the config the timed run would use.
-    import dataclasses, json, sys
-    from dc_lesson import algorithms
-    from dc_lesson.algorithms import dc
     seen = {}
     stub = lambda task, demos, cfg, **kw: seen.update(cfg=cfg)
     monkeypatch.setitem(algorithms.ALGORITHMS, "dc",
                         dataclasses.replace(algorithms.ALGORITHMS["dc"], train=stub))
     monkeypatch.setattr(algorithms.bc, "warm_start_policy", lambda *a, **kw: None)
     monkeypatch.setattr(sys, "argv", ["snippet", name, "reacher1"])
-    exec(compile(runs._SNIPPET, "perf-runs-snippet", "exec"), {})
+    threads = torch.get_num_threads()
+    try:
+        exec(compile(runs._SNIPPET, "perf-runs-snippet", "exec"), {})
+    finally:
+        torch.set_num_threads(threads)      # the snippet pins one thread for its own process
     got = {k: getattr(seen["cfg"], k) for k in dc.STORED_NUMERICS}
     today = {k: getattr(dc.DCConfig(), k) for k in dc.STORED_NUMERICS}
     assert got == (dc.STORED_NUMERICS if numerics == "stored" else today)
