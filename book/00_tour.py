@@ -481,10 +481,11 @@ for r in dc_runs["rows"]:
     if r.get("note"):
         print(f"{r['learner']}: {r['note']}")
 dc4 = read_result("perf_runs_dc_reacher4.json")["rows"][0]
+dc2 = next(r for r in dc_runs["rows"] if r["task"] == dc4["task"] and r["learner"] == "dc")
 fmt = lambda xs: ", ".join(f"{x:.1f}" for x in xs)
-print(f"reacher4 again with four runs of each: before {fmt(dc4['runs']['before'])} s, today "
-      f"{fmt(dc4['runs']['today'])} s (x{dc4['ratio']:.2f}); with two, one disturbed run "
-      f"moves the median")
+print(f"{dc4['task']} again with four runs of each: before {fmt(dc4['runs']['before'])} s, "
+      f"today {fmt(dc4['runs']['today'])} s (x{dc4['ratio']:.2f}); the two-run figure above "
+      f"rests on today {fmt(dc2['runs']['today'])} s (x{dc2['ratio']:.2f})")
 pd.DataFrame(dc_runs["rows"]).set_index(["learner", "task"])[
     ["seconds_before", "seconds_today", "ratio", "steps_per_s_before",
      "steps_per_s_today"]].round(2)
