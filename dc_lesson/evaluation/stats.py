@@ -127,6 +127,60 @@ def iqm_ci(scores, *, level: float = LEVEL, n_resamples: int = 2000, seed: int =
                     n_seeds, "stratified bootstrap, percentile")
 
 
+def _strata(samples) -> list[np.ndarray]:
+    """Per-task score arrays from a dict ``{task: scores}``, a list of arrays or a (seeds,
+    tasks) matrix (tasks may have different numbers of runs)."""
+    if isinstance(samples, dict):
+        samples = list(samples.values())
+    elif isinstance(samples, np.ndarray) and samples.ndim == 2:
+        samples = list(samples.T)
+    out = [_values(s, "scores") for s in samples]
+    if not out:
+        raise ValueError("no tasks to aggregate over")
+    return out
+
+
+def _boot_draws(strata, rng, n_resamples: int) -> list[np.ndarray]:
+    """Per task, ``n_resamples`` resamples of its own runs (the stratified bootstrap)."""
+    return [s[rng.integers(0, s.size, (n_resamples, s.size))] for s in strata]
+
+
+def iqm_tasks(by_task, *, level: float = LEVEL, n_resamples: int = 2000,
+              seed: int = 0) -> Interval:
+    """IQM over every (task, run) score and its stratified bootstrap interval (runs resampled
+    within each task; rliable's ``aggregate_iqm`` with ``StratifiedBootstrap``)."""
+    strata = _strata(by_task)
+    boot = np.concatenate(_boot_draws(strata, np.random.default_rng(seed), n_resamples), 1)
+    reps = _stats.trim_mean(boot, 0.25, axis=1)
+    q = (1 - level) / 2
+    return Interval(iqm(np.concatenate(strata)), float(np.quantile(reps, q)),
+                    float(np.quantile(reps, 1 - q)), len(strata), "stratified bootstrap")
+
+
+def _poi(xs, ys) -> np.ndarray:
+    """Per task the Mann-Whitney share P(x > y) + P(x = y) / 2 over all run pairs (the last
+    axis), averaged over tasks."""
+    per = [((x[..., :, None] > y[..., None, :]) + 0.5 * (x[..., :, None] == y[..., None, :]))
+           .mean(axis=(-1, -2)) for x, y in zip(xs, ys)]
+    return np.mean(per, axis=0)
+
+
+def probability_of_improvement(x, y, *, level: float = LEVEL, n_resamples: int = 2000,
+                               seed: int = 0) -> Interval:
+    """P(X > Y) of Agarwal et al. (2021): per task, the probability that a run of X scores
+    above a run of Y (ties count half), averaged over tasks; ``x`` and ``y`` name the same
+    tasks in the same order.  Interval: stratified bootstrap, each learner's runs resampled
+    within each task on their own."""
+    xs, ys = _strata(x), _strata(y)
+    if len(xs) != len(ys):
+        raise ValueError(f"x has {len(xs)} tasks, y {len(ys)}")
+    rng = np.random.default_rng(seed)
+    reps = _poi(_boot_draws(xs, rng, n_resamples), _boot_draws(ys, rng, n_resamples))
+    q = (1 - level) / 2
+    return Interval(float(_poi(xs, ys)), float(np.quantile(reps, q)),
+                    float(np.quantile(reps, 1 - q)), len(xs), "stratified bootstrap")
+
+
 def tv(p: dict | np.ndarray, q: dict | np.ndarray) -> float:
     """Total variation distance between two share vectors (dicts keyed alike, or arrays)."""
     if isinstance(p, dict):
@@ -163,5 +217,5 @@ def kendall_tau(x, y) -> float:
     return float(s / (n * (n - 1) / 2))
 
 
-__all__ = ["Interval", "LEVEL", "iqm", "kendall_tau", "iqm_ci", "mean_ci", "multinomial_tv_floor",
+__all__ = ["Interval", "LEVEL", "iqm", "iqm_tasks", "probability_of_improvement", "kendall_tau", "iqm_ci", "mean_ci", "multinomial_tv_floor",
            "paired_diff", "tv", "unpaired_diff"]

@@ -1,0 +1,357 @@
+"""The one place where results become words: the rule, the vocabulary and the counter.
+
+**The test.**  A comparison is the per-seed differences ``a - b`` of two rows that share their
+seeds (and so their warm start).  Its interval is the paired **t** interval at 95% and its
+p-value the two-sided paired t-test of a zero mean.  Chosen by simulation
+(``tests/test_verdicts.py``, :func:`false_positive_rate`): under a true null the t-test
+declared a difference at most 0.06 of the time on normal, t(2) and bimodal nulls at 5 and 10
+seeds, where the former rule (a 95% BCa bootstrap interval) did 0.10-0.25 of the time (the
+bootstrap under-covers with few values).  An exact sign-flip test cannot reject at all with 5
+seeds (its smallest two-sided p is 2/32), so it is not used.
+
+**The smallest effect of interest** (:data:`SMALLEST`, declared before any result was read
+with this rule): 0.05 scaled return (a twentieth of the expert's return over random's), and
+as stated there for the other measures; for EMD, KL and RKL, whose scale differs per task, the
+expert-vs-expert floor on the task (two samples of the expert differ by that much).
+
+**The words** (:data:`WORDS`), for a claim that ``a - b`` has the paper's sign:
+
+* *reproduced*: the difference is on the paper's side, with Holm-adjusted p < 0.05, and its
+  mean is at least the smallest effect;
+* *contradicted*: the same on the other side;
+* *equal within B*: the whole 95% interval lies inside +-B (B the smallest effect: TOST at
+  2.5% each side, Holm-adjusted); this is what a "comparable" claim asks for;
+* *inconclusive*: neither;
+* *not judged: reason*: fewer than :data:`MIN_SEEDS` paired seeds, a row that failed a
+  competence gate (an optional ``competence`` mapping learner -> reason), or, on a return
+  measure, a start at the ceiling (within :data:`LEVEL_GAP` of the expert's 1) or at the
+  floor (within it of random's 0), where the comparison cannot show what the claim asks.
+
+**Multiplicity.**  A claim judged over several tasks (or demonstration counts) is one family:
+its p-values are adjusted by Holm's step-down method across the judged members, and the
+count says over how many.  :func:`count` is the one counter.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+from scipy import stats as _stats
+
+ALPHA = 0.05
+LEVEL = 0.95
+MIN_SEEDS = 5           # fewer paired seeds than this: not judged
+LEVEL_GAP = 0.05        # a start within this of the expert's 1 or random's 0 leaves no room
+# The smallest effect of interest per measure (absolute, on the measure's own axis).
+SMALLEST = {"scaled_return": 0.05, "early_return": 0.05, "worst_lr_return": 0.05,
+            "curve_mean": 0.05, "late_spread": 0.05, "curve_spread": 0.05,
+            "mode_tv": 0.05, "largest_share": 0.05,            # shares of episodes
+            "log_gap_ratio": 0.1, "log_change_ratio": 0.1}     # log ratios: a 10% change
+DIVERGENCES = ("emd", "kl", "rkl")      # bound: the expert-vs-expert floor on the task
+FALLBACK = 0.05                         # a divergence whose floor is unknown
+RETURN_MEASURES = ("scaled_return", "early_return", "worst_lr_return", "curve_mean")
+BETTER = {"scaled_return": +1, "emd": -1, "kl": -1, "rkl": -1, "mode_tv": -1}
+
+REPRODUCED, CONTRADICTED, INCONCLUSIVE = "reproduced", "contradicted", "inconclusive"
+EQUAL, NOT_JUDGED = "equal within", "not judged"
+WORDS = (REPRODUCED, CONTRADICTED, EQUAL, INCONCLUSIVE, NOT_JUDGED)
+CEILING, FLOOR = "start at the ceiling", "start at the floor"
+
+
+def kind(word: str) -> str:
+    """The vocabulary entry a rendered word belongs to (``equal within 0.05`` -> ``equal
+    within``, ``not judged: ...`` -> ``not judged``)."""
+    return next(w for w in WORDS if word.startswith(w))
+
+
+def bound_for(measure: str, floor: float | None = None) -> float:
+    if measure in DIVERGENCES:
+        return float(floor) if floor is not None and floor > 0 else FALLBACK
+    return SMALLEST.get(measure, FALLBACK)
+
+
+# -- the test --------------------------------------------------------------------------------------
+
+@dataclasses.dataclass(frozen=True)
+class Test:
+    """A paired t-test: mean difference, 95% interval, p of a zero mean, p of equivalence."""
+    mean: float
+    lo: float
+    hi: float
+    n: int
+    p: float          # two-sided, H0: mean 0
+    p_equal: float    # TOST against +-bound, each side at half of 1 - LEVEL
+
+
+def paired_t(diffs, bound: float = 0.0) -> Test:
+    d = np.asarray(diffs, np.float64).ravel()
+    n, m = d.size, float(d.mean()) if d.size else float("nan")
+    if n < 2:
+        return Test(m, float("nan"), float("nan"), n, 1.0, 1.0)
+    se = float(d.std(ddof=1)) / np.sqrt(n)
+    if se == 0:         # every seed the same difference: the interval is that point
+        return Test(m, m, m, n, 1.0 if m == 0 else 0.0, 0.0 if abs(m) < bound else 1.0)
+    t = _stats.t(n - 1)
+    half = float(t.ppf(0.5 + LEVEL / 2)) * se
+    p = float(2 * t.sf(abs(m) / se))
+    # TOST: both one-sided tests must reject; doubling keeps it the 95% interval's test
+    p_eq = float(min(1.0, 2 * max(t.sf((m + bound) / se), t.sf((bound - m) / se))))
+    return Test(m, m - half, m + half, n, p, p_eq)
+
+
+def holm(ps) -> list[float]:
+    """Holm's step-down adjusted p-values (monotone, capped at 1), in the input order."""
+    ps = np.asarray(ps, float)
+    order = np.argsort(ps, kind="stable")
+    adj, run = np.empty_like(ps), 0.0
+    for rank, i in enumerate(order):
+        run = max(run, min(1.0, (len(ps) - rank) * ps[i]))
+        adj[i] = run
+    return adj.tolist()
+
+
+def decide(test: Test, direction: int, bound: float, p: float | None = None,
+           p_equal: float | None = None) -> str:
+    """The word for one test (``p``, ``p_equal``: its Holm-adjusted p-values, if in a
+    family)."""
+    p = test.p if p is None else p
+    p_equal = test.p_equal if p_equal is None else p_equal
+    if p < ALPHA and abs(test.mean) >= bound:
+        return REPRODUCED if np.sign(test.mean) == direction else CONTRADICTED
+    if p_equal < ALPHA:
+        return f"{EQUAL} {bound:g}"
+    return INCONCLUSIVE
+
+
+def word_of_diffs(diffs, measure: str, direction: int, floor: float | None = None) -> str:
+    """One comparison on its own (no family): the word, or ``not judged`` with few seeds."""
+    if len(diffs) < MIN_SEEDS:
+        return f"{NOT_JUDGED}: fewer than {MIN_SEEDS} paired seeds"
+    b = bound_for(measure, floor)
+    return decide(paired_t(diffs, b), direction, b)
+
+
+# -- claims, judged in families ----------------------------------------------------------------------
+
+@dataclasses.dataclass(frozen=True)
+class Claim:
+    """A claim and its rule, declared in advance: ``a - b`` on ``measure`` has sign
+    ``direction``; ``comparable``: the claim is "a is at least comparable to b"; ``start``:
+    the row whose scaled return sets the start's level (None: no level gate)."""
+    name: str
+    source: str
+    measure: str
+    a: str
+    b: str
+    direction: int
+    reason: str
+    comparable: bool = False
+    start: str | None = "bc"
+    gates: tuple = (CEILING, FLOOR)
+
+    @property
+    def rule(self) -> str:
+        side = "above" if self.direction > 0 else "below"
+        what = (f"reproduced if a - b is {side} zero" + (" or equal within the bound"
+                                                           if self.comparable else ""))
+        return (f"{self.measure}: paired t-test of ({self.a} - {self.b}) per seed, Holm "
+                f"across the claim's tasks; {what} (p < {ALPHA}, mean beyond the smallest "
+                f"effect {bound_for(self.measure)}{' or the expert floor' if self.measure in DIVERGENCES else ''}); "
+                f"equal within it if the 95% interval lies inside it; not judged with fewer "
+                f"than {MIN_SEEDS} seeds, a failed competence gate"
+                + (", or a start at the ceiling or floor" if self.gated else ""))
+
+    @property
+    def gated(self) -> bool:
+        return self.start is not None and self.measure in RETURN_MEASURES
+
+
+class Entry(tuple):
+    """One member of a claim's family: ``(key, word, mean, lo, hi, n, p_holm, bound)``."""
+    __slots__ = ()
+    fields = ("key", "word", "mean", "lo", "hi", "n", "p_holm", "bound")
+
+    def __new__(cls, *values):
+        return tuple.__new__(cls, values)
+
+    def __getattr__(self, name):
+        return self[self.fields.index(name)]
+
+
+@dataclasses.dataclass(frozen=True)
+class Verdict:
+    claim: str
+    source: str
+    rule: str
+    verdict: str          # the count over the family (:func:`count`)
+    evidence: str
+    reason: str = ""
+    per_task: tuple = ()  # Entry per member
+
+
+def fmt_num(x: float) -> str:
+    """A difference with digits enough not to print a nonzero value as -0.000."""
+    if not np.isfinite(x):
+        return "nan"
+    return f"{x:+.1e}" if x != 0 and abs(x) < 5e-4 else f"{x:+.3f}"
+
+
+def start_gate(level: float | None, gates=(CEILING, FLOOR)) -> str | None:
+    """The start's mean scaled return -> CEILING / FLOOR / None."""
+    if level is None:
+        return None
+    if CEILING in gates and level >= 1 - LEVEL_GAP:
+        return CEILING
+    if FLOOR in gates and level <= LEVEL_GAP:
+        return FLOOR
+    return None
+
+
+def competence_gate(claim: Claim, competence: dict | None) -> str | None:
+    for row in (claim.b, claim.a):
+        for name in (row, row.split("-")[0].split("@")[0].split(" ")[0]):
+            if competence and name in competence:
+                return f"{row} failed the competence gate ({competence[name]})"
+    return None
+
+
+def judge_family(claim: Claim, members, competence: dict | None = None) -> tuple:
+    """``members``: ``(key, diffs, start level or None, floor or None)`` each; the entries,
+    the judged ones adjusted together by Holm."""
+    gate = competence_gate(claim, competence)
+    tests, reasons = [], []
+    for key, diffs, level, floor in members:
+        b = bound_for(claim.measure, floor)
+        tests.append((key, paired_t(diffs, b), b))
+        why = gate or (f"fewer than {MIN_SEEDS} paired seeds" if len(diffs) < MIN_SEEDS
+                       else start_gate(level, claim.gates) if claim.gated else None)
+        reasons.append(why)
+    judged = [i for i, r in enumerate(reasons) if r is None]
+    p = dict(zip(judged, holm([tests[i][1].p for i in judged]))) if judged else {}
+    pe = dict(zip(judged, holm([tests[i][1].p_equal for i in judged]))) if judged else {}
+    out = []
+    for i, (key, t, b) in enumerate(tests):
+        w = (f"{NOT_JUDGED}: {reasons[i]}" if reasons[i] else
+             decide(t, claim.direction, b, p[i], pe[i]))
+        out.append(Entry(key, w, t.mean, t.lo, t.hi, t.n, p.get(i, float("nan")), b))
+    return tuple(out)
+
+
+def label(key) -> str:
+    return f"{key[0]} ({key[1]})" if isinstance(key, tuple) else str(key)
+
+
+def count(entries, unit: str = "tasks") -> str:
+    """The one counter: ``reproduced`` (``(all n tasks)``) when every judged member agrees,
+    else ``reproduced on k of n tasks, ...``; the members not judged named apart with their
+    reasons; with Holm over n: said."""
+    judged = [e for e in entries if kind(e[1]) != NOT_JUDGED]
+    n = len(judged)
+    if not judged:
+        head = f"{NOT_JUDGED}" if entries else INCONCLUSIVE
+    else:
+        words = [e[1] for e in judged]
+        if len(set(words)) == 1:
+            head = words[0] + (f" (all {n} {unit}, Holm over {n})" if n > 1 else "")
+        else:
+            order = sorted(set(words), key=lambda w: (WORDS.index(kind(w)), w))
+            head = ", ".join(f"{w} on {words.count(w)} of {n} {unit}" for w in order) + \
+                f" (Holm over {n})"
+    apart: dict = {}
+    for e in entries:
+        if kind(e[1]) == NOT_JUDGED:
+            apart.setdefault(e[1].split(": ", 1)[1], []).append(label(e[0]))
+    if apart:
+        head += "; not judged on " + "; ".join(f"{', '.join(k)} ({why})"
+                                               for why, k in apart.items())
+    return head
+
+
+def evidence(claim: Claim, entries, note: str = "") -> str:
+    parts = []
+    for e in entries:
+        band = (f"[{fmt_num(e[3])}, {fmt_num(e[4])}]" if np.isfinite(e[3]) and np.isfinite(e[4])
+                else "(no interval)")
+        p = f", p (Holm) {e[6]:.3f}" if np.isfinite(e[6]) else ""
+        parts.append(f"{label(e[0])}: {claim.a} - {claim.b} = {fmt_num(e[2])} {band} over "
+                     f"{e[5]} seeds{p} -> {e[1]}")
+    return ("; ".join(parts) or "no paired results") + (f" ({note})" if note else "")
+
+
+def paired_values(obs, key, a: str, b: str, measure, by=("task",)) -> tuple[list, list, list]:
+    """Per seed both rows have at ``key`` (a value of the ``by`` fields): ``(seeds, a values,
+    b values)``; ``measure`` is a field or a function of an observation."""
+    get = measure if callable(measure) else (lambda o: o.get(measure))
+    key = key if isinstance(key, tuple) else (key,)
+    at = [o for o in obs if tuple(o.get(f) for f in by) == key]
+    ra = {o["seed"]: get(o) for o in at if o["row"] == a}
+    rb = {o["seed"]: get(o) for o in at if o["row"] == b}
+    seeds = sorted(s for s in set(ra) & set(rb) if ra[s] is not None and rb[s] is not None)
+    return seeds, [ra[s] for s in seeds], [rb[s] for s in seeds]
+
+
+def start_level(obs, key, row: str | None, by=("task",)) -> float | None:
+    key = key if isinstance(key, tuple) else (key,)
+    v = [o["scaled_return"] for o in obs if row and o["row"] == row and
+         tuple(o.get(f) for f in by) == key and o.get("scaled_return") is not None]
+    return float(np.mean(v)) if v else None
+
+
+def judge_claim(claim: Claim, obs, keys=None, measure=None, note: str = "", by=("task",),
+                competence: dict | None = None, floors: dict | None = None,
+                unit: str = "tasks") -> Verdict:
+    """The claim over every ``key`` (values of the ``by`` fields: a task, or (task, count))
+    that has paired seeds: one Holm family, its entries, the count and the evidence.
+    ``floors``: ``{task: {measure: expert-vs-expert value}}`` for the divergences' bound."""
+    keys = list(keys or dict.fromkeys(tuple(o.get(f) for f in by) for o in obs))
+    members = []
+    for k in keys:
+        k1 = k if isinstance(k, tuple) or len(by) > 1 else (k,)
+        seeds, va, vb = paired_values(obs, k1, claim.a, claim.b, measure or claim.measure, by)
+        if not seeds:
+            continue
+        floor = (floors or {}).get(k1[0], {}).get(claim.measure)
+        members.append((k1[0] if len(by) == 1 else k1, np.subtract(va, vb),
+                        start_level(obs, k1, claim.start, by), floor))
+    entries = judge_family(claim, members, competence)
+    return Verdict(claim.name, claim.source, claim.rule, count(entries, unit),
+                   evidence(claim, entries, note), claim.reason, entries)
+
+
+# -- calibration: what the rule does under a true null, and its power --------------------------------
+
+def _bimodal(rng, size):
+    """Hopper-like differences: 0 w.p. 0.6, else +-0.9 (a seed that falls off, or not)."""
+    return np.where(rng.random(size) < 0.6, 0.0, rng.choice([-0.9, 0.9], size))
+
+
+NULLS = {"normal": lambda rng, size: rng.normal(0, 0.2, size),
+         "t2": lambda rng, size: 0.1 * rng.standard_t(2, size),
+         "bimodal": _bimodal}
+
+
+def t_rule(samples: np.ndarray, bound: float = 0.0) -> np.ndarray:
+    """Per row of ``samples`` (sims, n): whether the rule declares a difference (reproduced
+    or contradicted), vectorised :func:`decide` without a family."""
+    n = samples.shape[1]
+    m = samples.mean(1)
+    se = samples.std(1, ddof=1) / np.sqrt(n)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        p = np.where(se > 0, 2 * _stats.t(n - 1).sf(np.abs(m) / se), (m == 0) * 1.0)
+    return (p < ALPHA) & (np.abs(m) >= bound)
+
+
+def false_positive_rate(rule, null: str, n: int, sims: int = 4000, seed: int = 0) -> float:
+    """The share of ``sims`` null samples of ``n`` paired differences (mean zero) on which
+    ``rule`` (a function of a (sims, n) array -> bool per row) declares a difference."""
+    x = NULLS[null](np.random.default_rng(seed), (sims, n))
+    return float(np.mean(rule(x)))
+
+
+def power(effect: float, sd: float, n: int, bound: float = SMALLEST["scaled_return"],
+          sims: int = 20000, seed: int = 0) -> float:
+    """The share of normal samples (mean ``effect``, sd ``sd``, ``n`` seeds) the rule calls a
+    difference on ``effect``'s side (a single test, no family)."""
+    x = np.random.default_rng(seed).normal(effect, sd, (sims, n))
+    return float(np.mean(t_rule(x, bound) & (np.sign(x.mean(1)) == np.sign(effect))))
