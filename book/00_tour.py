@@ -217,17 +217,20 @@ print("replay identical:", np.array_equal(obs, traj.observations)
 # * `cartpole`: a linear-quadratic regulator about the upright position, its cost read off
 #   the task's reward. Not a learned policy, and nearly perfect.
 # * `reacher1`, `reacher2`, `reacher4`: inverse kinematics to a target and a PD controller on
-#   the joint angles. In the multi-target tasks **a coin flip picks the target of each
-#   episode**, uniformly and independently of where the arm starts. That is a deliberate
-#   choice: the observation does not say which target was picked, so at the first step the
-#   expert's action distribution is genuinely multi-modal (four directions from the same
-#   state), and a learner must commit to a mode by itself. Had the expert gone to the target
-#   nearest its start, the mode would be a function of the initial state, which a
-#   single-Gaussian policy can represent, and there would be little to collapse.
+#   the joint angles. In the multi-target tasks **the expert goes to the target nearest the
+#   fingertip at the first step**: its mode is a deterministic function of the observed start
+#   state. That is deliberate. The paper's experts were Gaussian MLPs, the learner's own
+#   class, so a learner *could* follow them exactly; a rule on the start state keeps that
+#   true, and the demonstrations still split over every target, so a learner that collapses
+#   onto one loses the others. The variant `reacher4-coin` (and `reacher2-coin`,
+#   `halfcheetah2-coin`) picks the target by a hidden coin flip per episode instead: the
+#   observation does not say which target was drawn, so no Markov single-Gaussian policy can
+#   follow it, and chapter 04 uses it as the lesson on what such a policy cannot represent.
 # * `halfcheetah`, `hopper`: policies trained with the library's PPO
 #   (`dc-lesson expert train --task NAME`, one to three million steps, checkpointed so a run
-#   survives interruption). `halfcheetah2` joins a forward and a backward runner by the same
-#   per-episode coin flip as the reachers. The hopper's PPO trains as Gym's does, with a
+#   survives interruption). `halfcheetah2` joins a forward and a backward runner, switched by
+#   the start state (forward when the back thigh's first angle is at or above its median over
+#   start states, so each runs about half the episodes; `halfcheetah2-coin` flips a coin). The hopper's PPO trains as Gym's does, with a
 #   fallen hopper ending its training episode (`PPOConfig(terminate="hopper-fall")`, for
 #   training only: the task itself never ends early).
 # * `walker`, `ant` and `humanoid`: no policy at all, but a **planner on the true
@@ -280,9 +283,9 @@ pd.DataFrame(rows).set_index("task").fillna("")
 
 # %% [markdown]
 # The returns of the 25 demonstrations of each task, and, for the multi-target reacher,
-# where the fingertip spends its time in them. With only 25 coin flips the demonstrations do
-# not split exactly evenly over the targets; the expert's own shares over 50 fresh episodes
-# are in the table above. What a learner can hope to match is the demonstrations' split.
+# where the fingertip spends its time in them. The split over the targets is the split of the
+# 25 start states, not an even one; the expert's own shares over 50 fresh episodes are in the
+# table above. What a learner can hope to match is the demonstrations' split.
 
 # %%
 have = [n for n in names if n in manifest]
@@ -315,14 +318,25 @@ plt.show()
 # check it from the stored files with `dc_lesson.experts.floors`: the mean return over the
 # 50 evaluation episodes, per mode for the multi-mode tasks, and for the hopper also whether
 # it hops forward in every demonstration without falling (a mean return could hide one that
-# stands still, which earns a quarter of the reward, or one that falls). **Not every expert clears its floor**, and the table says which: those tasks'
-# demonstrations are still what a learner imitates, and scaled returns are still measured
-# against that expert, so on them "1.0" means "as good as our expert", not "solved".
+# stands still, which earns a quarter of the reward, or one that falls). An episode that
+# arrives at no target is not a mode the expert must take; it is counted, and an expert
+# whose demonstrations too often arrive nowhere misses its floor.
+#
+# A floor on return does not make an expert *imitable*. The last two columns are BC's scaled
+# return from 25 of the expert's demonstrations, as the stored Table III grid measured it,
+# and whether it reaches 0.5 (`floors.CLONE_FLOOR`; blank where Table III has no row: the
+# multi-mode tasks are Table I's). A planner meets its floor and is not a Markov policy, so
+# BC cannot clone it: on those tasks every learner that starts from BC starts at random.
 
 # %%
 from dc_lesson.experts import floors
 
-pd.DataFrame(floors.report()).set_index("task").round(1).fillna("")
+floor_table = pd.DataFrame(floors.report()).set_index("task")
+floor_table["BC from 25 demos"] = floor_table["BC from 25 demos"].map(
+    lambda v: "" if pd.isna(v) else f"{v:.2f}")
+floor_table["clonable"] = floor_table["clonable"].map(
+    lambda v: "" if v is None or pd.isna(v) else ("yes" if v else "no"))
+floor_table.round(1).fillna("")
 
 # %% [markdown]
 # Why the planner took over three locomotion tasks: the learning curves of our PPO runs,
@@ -378,7 +392,7 @@ plt.tight_layout()
 plt.show()
 
 # %% [markdown]
-# An expert at work: the `reacher4` expert, three episodes whose coin flips differ.
+# An expert at work: the `reacher4` expert, three episodes whose start states differ.
 
 # %%
 from dc_lesson.experts import load_expert

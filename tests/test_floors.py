@@ -4,7 +4,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from dc_lesson import tasks
+from dc_lesson import data, tasks
 from dc_lesson.experts import floors
 
 
@@ -41,10 +41,40 @@ def test_a_hopper_that_only_stands_misses_the_floor_despite_its_return():
     assert not floors.check("hopper", _entry(500, ["single"]), one_stands)["meets floor"]
 
 
+def test_the_none_class_is_counted_not_demanded():
+    # the manifest lists "none" beside the modes; no competent expert must "take" it
+    ok = floors.check("reacher2", _entry(990, ["red", "blue", "none"]),
+                      [_traj(990, 0), _traj(990, 1)])
+    assert ok["meets floor"] and "none" not in ok["per mode / behaviour"]
+    # but an expert whose demonstrations arrive nowhere too often misses the floor
+    lost = [_traj(990, 0), _traj(990, 1)] + [_traj(100, tasks.NO_MODE)] * 2
+    row = floors.check("reacher2", _entry(990, ["red", "blue", "none"]), lost)
+    assert not row["meets floor"] and "50% of demonstrations arrived nowhere" in \
+        row["per mode / behaviour"]
+    few = [_traj(990, 0), _traj(990, 1)] * 10 + [_traj(100, tasks.NO_MODE)]
+    assert floors.check("reacher2", _entry(990, ["red", "blue", "none"]), few)["meets floor"]
+
+
 def test_the_report_covers_every_task_and_agrees_with_the_manifest():
     rows = floors.report()
     assert [r["task"] for r in rows] == list(tasks.NAMES)
+    manifest = data.read_manifest()["tasks"]
     for r in rows:
-        if "expert return" in r and r["task"] not in ("reacher2", "reacher4", "halfcheetah2",
-                                                       "hopper"):
+        demos = data.load_demos(r["task"]).trajectories
+        # the report is check() of the manifest's own entry, for every task, none skipped
+        assert r["meets floor"] == floors.check(r["task"], manifest[r["task"]],
+                                                demos)["meets floor"]
+        if not tasks.SPECS[r["task"]].multimodal and r["task"] != "hopper":
             assert r["meets floor"] == (r["expert return"] >= r["floor"])
+
+
+def test_clonable_reads_bc_from_the_stored_grid(tmp_path):
+    import json
+    (tmp_path / "table3.json").write_text(json.dumps({"table": [
+        {"row": "bc", "task": "walker", "n_demos": 25, "scaled_return_mean": 0.49},
+        {"row": "bc", "task": "hopper", "n_demos": 25, "scaled_return_mean": 0.51},
+        {"row": "bc", "task": "hopper", "n_demos": 4, "scaled_return_mean": 0.1},
+        {"row": "gail", "task": "ant", "n_demos": 25, "scaled_return_mean": 0.9}]}))
+    rows = {r["task"]: r for r in floors.report(results_dir=tmp_path)}
+    assert rows["walker"]["clonable"] is False and rows["hopper"]["clonable"] is True
+    assert rows["ant"]["clonable"] is None and rows["reacher4"]["BC from 25 demos"] is None
