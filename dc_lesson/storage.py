@@ -1,10 +1,16 @@
 """Where the library's files live, and how it writes them: the bottom layer every other reads.
 
-* :data:`DATA` is the one data folder (``demos/``, ``experts/``, ``results/``).  It is found the
-  same way from a copy of the repository, an editable install and a wheel: the package's
-  ``_data`` entry, which in the repository is a link to the top-level ``data/`` folder and in a
-  wheel is that folder's copy.  The environment variable ``DC_LESSON_DATA`` overrides it (a
-  folder of your own, e.g. for a read-only install).
+* :func:`data_root` is the one data folder (``demos/``, ``experts/``, ``results/``).  It is
+  found the same way from a copy of the repository, an editable install and a wheel: the
+  package's ``_data`` entry, which in the repository is a link to the top-level ``data/``
+  folder and in a wheel is that folder's copy.  The environment variable ``DC_LESSON_DATA``
+  overrides it (a folder of your own, e.g. for a read-only install).  It is read at every use,
+  never fixed at import: :data:`DATA` and :data:`RESULTS` (and the modules' ``DEMOS_DIR`` and
+  ``EXPERTS_DIR`` made from them) are :class:`DataPath` views that resolve when used, so a
+  variable set after import (``%env`` in a notebook) moves every reader and writer at once.
+  A ``DC_LESSON_DATA`` naming no folder is refused, never created and filled.
+* Every reader opens files through :func:`open_regular`: a FIFO (which would block forever)
+  or a device (a link to ``/dev/zero`` reads until memory runs out) is refused by name.
 * Writes are atomic (a temporary file ``.NAME.PID.XXXXXXXX.tmp``, then a rename), so a crash
   never leaves half a file; a temporary file a killed writer left behind is removed by the next
   write into the same folder (see :func:`remove_stale_temps`).
@@ -22,6 +28,7 @@ import math
 import os
 import pathlib
 import re
+import stat
 import subprocess
 import time
 import uuid
@@ -32,16 +39,108 @@ ROOT = pathlib.Path(__file__).resolve().parent.parent   # the repository (or sit
 DATA_ENV = "DC_LESSON_DATA"
 
 
+PACKAGE_DATA = pathlib.Path(__file__).resolve().parent / "_data"
+
+
+class DataFolderError(ValueError):
+    """``DC_LESSON_DATA`` names no folder (a typo would otherwise be created and filled)."""
+
+
 def data_root() -> pathlib.Path:
-    """The data folder: ``$DC_LESSON_DATA`` if set, else the package's ``_data``."""
+    """The data folder: ``$DC_LESSON_DATA`` if set (it must be an existing folder), else the
+    package's ``_data``.  Read at every call: the one place the data folder is decided."""
     env = os.environ.get(DATA_ENV)
-    if env:
-        return pathlib.Path(env).expanduser().resolve()
-    return pathlib.Path(__file__).resolve().parent / "_data"
+    if not env:
+        return PACKAGE_DATA
+    path = pathlib.Path(env).expanduser().resolve()
+    if not path.is_dir():
+        problem = "is a file, not a folder" if path.exists() else "does not exist"
+        raise DataFolderError(f"{DATA_ENV}={env} {problem}; the data folder must exist (make "
+                              f"it with: mkdir -p {path}, and copy the package's data into it "
+                              f"with: cp -r {PACKAGE_DATA}/. {path}), or unset {DATA_ENV} to "
+                              f"use {PACKAGE_DATA}")
+    return path
 
 
-DATA = data_root()
+class DataPath(os.PathLike):
+    """A path inside the data folder, resolved at each use (:func:`data_root`), so a module
+    constant such as ``DATA / "demos"`` follows ``DC_LESSON_DATA`` set after import.
+    ``pathlib.Path(p)`` and ``os.fspath(p)`` give today's path; ``p / "x"`` another view;
+    any other attribute is today's ``pathlib.Path``'s."""
+
+    def __init__(self, *parts: str):
+        self._parts = tuple(str(x) for x in parts)
+
+    def now(self) -> pathlib.Path:
+        return data_root().joinpath(*self._parts)
+
+    def __fspath__(self) -> str:
+        return str(self.now())
+
+    __str__ = __fspath__
+
+    def __repr__(self) -> str:
+        return f"DataPath({'/'.join(('DATA',) + self._parts)})"
+
+    def __truediv__(self, other) -> "DataPath":
+        return DataPath(*self._parts, other)
+
+    def __getattr__(self, name):
+        return getattr(self.now(), name)
+
+    def __eq__(self, other) -> bool:
+        if isinstance(other, DataPath):
+            return self._parts == other._parts
+        return isinstance(other, (str, os.PathLike)) and self.now() == pathlib.Path(other)
+
+    def __hash__(self) -> int:
+        return hash(self._parts)
+
+
+DATA = DataPath()
 RESULTS = DATA / "results"
+
+
+class NotRegularFileError(ValueError):
+    """A file to read that is a FIFO, a device, a folder or a socket."""
+
+
+def _kind(mode: int) -> str:
+    return ("a folder" if stat.S_ISDIR(mode) else "a FIFO (named pipe)" if stat.S_ISFIFO(mode)
+            else "a device" if stat.S_ISCHR(mode) or stat.S_ISBLK(mode)
+            else "a socket" if stat.S_ISSOCK(mode) else "not a regular file")
+
+
+def open_regular(path, what: str = "file", fix: str = ""):
+    """``path`` opened for binary reading, only if it is (or links to) a regular file.
+
+    The open does not block (``O_NONBLOCK``: a FIFO with no writer would wait forever) and the
+    kind is taken from the opened file itself (``fstat``), so a link to ``/dev/zero`` is
+    refused before a byte is read.  Raises :class:`NotRegularFileError` naming ``what``,
+    the file, its kind and ``fix``; ``FileNotFoundError`` as ``open`` does."""
+    path = pathlib.Path(path)
+    fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_NOCTTY", 0))
+    try:
+        mode = os.fstat(fd).st_mode
+        if not stat.S_ISREG(mode):
+            raise NotRegularFileError(f"{what} {path} is {_kind(mode)}, not a regular file; "
+                                      f"{fix or 'replace it with the file the library wrote'}")
+        os.set_blocking(fd, True)
+        return os.fdopen(fd, "rb")
+    except BaseException:
+        os.close(fd)
+        raise
+
+
+def read_bytes(path, what: str = "file", fix: str = "") -> bytes:
+    """The bytes of a regular file (:func:`open_regular`)."""
+    with open_regular(path, what, fix) as f:
+        return f.read()
+
+
+def read_text(path, what: str = "file", fix: str = "") -> str:
+    """The UTF-8 text of a regular file (:func:`open_regular`)."""
+    return read_bytes(path, what, fix).decode()
 
 
 def git_revision() -> str:
@@ -83,7 +182,7 @@ def platform_info() -> dict:
 def sha256(path) -> str:
     """The hex sha256 of a file's bytes."""
     h = hashlib.sha256()
-    with open(path, "rb") as f:
+    with open_regular(path) as f:
         for block in iter(lambda: f.read(1 << 20), b""):
             h.update(block)
     return h.hexdigest()
@@ -200,6 +299,16 @@ def check_writable(path, folder: bool = False) -> pathlib.Path:
     if not os.access(target, os.W_OK | os.X_OK):
         raise OutputPathError(f"cannot write {path}: no write permission in {target}; choose "
                               f"another path")
+    # Permission bits do not tell everything (/proc, a read-only mount, a full disk for root):
+    # a file made and removed there does.
+    probe = target / f".write-check.{os.getpid()}.{uuid.uuid4().hex[:8]}.tmp"
+    try:
+        with open(probe, "xb") as f:
+            f.write(b"0")
+        probe.unlink()
+    except OSError as e:
+        raise OutputPathError(f"cannot write {path}: files cannot be made in {target} "
+                              f"({e.strerror or e}); choose another path") from None
     if not folder and path.exists() and not os.access(path, os.W_OK) \
             and not os.access(path.parent, os.W_OK):
         raise OutputPathError(f"cannot overwrite {path}; choose another path")
@@ -243,9 +352,9 @@ def read_result(name_or_path) -> dict:
     if not path.is_absolute() and not path.exists():
         path = RESULTS / path
     try:
-        return json.loads(path.read_text())
+        return json.loads(read_text(path, "result file", "regenerate it"))
     except FileNotFoundError:
         raise FileNotFoundError(f"result file {path} is missing; it is made by the command "
                                 f"recorded in the book beside the figure") from None
-    except json.JSONDecodeError as e:
+    except (json.JSONDecodeError, UnicodeDecodeError) as e:
         raise ValueError(f"result file {path} is not valid JSON ({e}); regenerate it") from None

@@ -103,3 +103,107 @@ def test_numpy_integers_are_whole_numbers():
     a = load_demos("cartpole", n_trajectories=np.int64(2), seed=np.int64(1))
     b = load_demos("cartpole", n_trajectories=2, seed=1)
     assert [t.seed for t in a.trajectories] == [t.seed for t in b.trajectories]
+
+
+# -- issue 42: every reader refuses a FIFO or a device (one guard, storage.open_regular) --------
+
+import contextlib
+import signal
+
+from dc_lesson import storage
+from dc_lesson.experiments import cells, sweep
+from dc_lesson.experts import demos as demos_module
+from dc_lesson.nn import checkpoint
+
+
+@contextlib.contextmanager
+def _within(seconds=20):
+    """Fails (instead of hanging the suite) if the block blocks, as a FIFO's read would."""
+    def timeout(*_):
+        raise AssertionError(f"blocked for {seconds} s")
+    old = signal.signal(signal.SIGALRM, timeout)
+    signal.alarm(seconds)
+    try:
+        yield
+    finally:
+        signal.alarm(0)
+        signal.signal(signal.SIGALRM, old)
+
+
+def _hostile(path, kind):
+    """Replaces ``path`` with a FIFO or a link to /dev/zero."""
+    if path.exists() or path.is_symlink():
+        path.unlink()
+    if kind == "fifo":
+        os.mkfifo(path)
+    else:
+        os.symlink("/dev/zero", path)
+
+
+KINDS = ["fifo", "zero"]
+KIND_WORD = {"fifo": "FIFO", "zero": "device"}
+
+
+@pytest.mark.parametrize("kind", KINDS)
+@pytest.mark.parametrize("which", ["model", "sidecar"])
+def test_a_model_file_or_its_sidecar_that_is_not_regular_is_refused(tmp_path, kind, which):
+    path = tmp_path / "m.pt"
+    checkpoint.atomic_torch_save({"format": "t", "version": 1}, path)
+    _hostile(path if which == "model" else checkpoint.checksum_path(path), kind)
+    with _within(), pytest.raises(checkpoint.ModelFileError, match=KIND_WORD[kind]) as e:
+        checkpoint.load_checked(path, "t", 1, "test model", fix="rerun it")
+    assert "not a regular file" in str(e.value) and "rerun it" in str(e.value)
+
+
+@pytest.mark.parametrize("kind", KINDS)
+@pytest.mark.parametrize("which", ["stamp", "episodes"])
+def test_a_planner_partial_file_that_is_not_regular_is_refused(tmp_path, kind, which):
+    partial = tmp_path / "ant-demos.npz"
+    partial.write_bytes(b"x")
+    stamp = partial.with_suffix(".json")
+    stamp.write_text("{}")
+    _hostile(stamp if which == "stamp" else partial, kind)
+    with _within(), pytest.raises(storage.NotRegularFileError, match=KIND_WORD[kind]) as e:
+        demos_module._resumable_episodes("ant", partial, stamp, "fp", 0)
+    assert "dc-lesson demos --task ant" in str(e.value)
+
+
+def _record(root):
+    cell = cells.make_cell("demo", "bc", "reacher4", 4, 0, {"epochs": 3})
+    return cell, cells.write_record(cell, {"score": 0.5}, {"f": np.zeros((2, 1))},
+                                    cells.provenance(command="t", budget="smoke", threads=1,
+                                                     wall_seconds=1.0, platform={}), root)
+
+
+@pytest.mark.parametrize("kind", KINDS)
+@pytest.mark.parametrize("which", ["record", "features"])
+def test_a_cell_file_that_is_not_regular_is_refused(tmp_path, kind, which):
+    cell, path = _record(tmp_path)
+    _hostile(path if which == "record" else cells.features_path(path), kind)
+    with _within(), pytest.raises(cells.CellError, match=KIND_WORD[kind]) as e:
+        cells.load(cell, tmp_path)
+    assert "git checkout" in str(e.value) and "dc-lesson sweep demo" in str(e.value)
+
+
+def test_a_fifo_among_the_cells_hangs_neither_a_dry_run_nor_an_aggregate(tmp_path, capsys,
+                                                                         monkeypatch):
+    """The issue: one FIFO anywhere under results/cells hung every `sweep --dry-run` and
+    `aggregate`.  A dry run skips it (it is no finished cell); reading it is an error."""
+    from dc_lesson import budget, cli
+    (tmp_path / "results" / "cells" / "table3" / "hopper").mkdir(parents=True)
+    os.mkfifo(tmp_path / "results" / "cells" / "table3" / "hopper" / "x__n4__s0__0.json")
+    monkeypatch.setenv(storage.DATA_ENV, str(tmp_path))
+    with _within(60):
+        assert sweep.measured_costs() == {}
+        with pytest.raises(cells.CellError, match="FIFO"):
+            cells.records("table3")
+        assert cli.main(["aggregate", "bc_demos", "--budget", "smoke"]) == 2
+    assert budget.current().name == "smoke"
+    assert not (tmp_path / "results" / "bc_demos.json").exists()
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_a_result_file_that_is_not_regular_is_refused(tmp_path, kind):
+    _hostile(tmp_path / "r.json", kind)
+    with _within(), pytest.raises(storage.NotRegularFileError, match="regenerate it"):
+        storage.read_result(tmp_path / "r.json")

@@ -167,3 +167,136 @@ def test_result_json_is_standard_with_nan_as_null(tmp_path):
     rec = json.loads(text, parse_constant=lambda c: pytest.fail(f"non-standard {c}"))
     assert rec["a"] is None and rec["b"] == [1.0, None, 2.5]
     assert rec["c"] == {"d": None, "e": 3} and rec["f"] == [0.5, None]
+
+
+# -- issue 42: saves killed twice, files copied over others, cell records -----------------------
+
+def test_two_saves_killed_before_their_rename_leave_the_intact_file_loadable(tmp_path,
+                                                                            monkeypatch):
+    """The sidecar used to keep the first killed save's digest as "the old one", so after a
+    second kill it no longer accepted the intact file on disk."""
+    path = tmp_path / "run.ckpt"
+    atomic_torch_save({"format": "f", "version": 1, "x": torch.zeros(3)}, path)
+    real_replace = os.replace
+
+    def killed_before_rename(src, dst):
+        if pathlib.Path(dst) == path:
+            raise KeyboardInterrupt   # the process dies before the data's rename
+        real_replace(src, dst)
+    monkeypatch.setattr(os, "replace", killed_before_rename)
+    for value in (1.0, 2.0):
+        with pytest.raises(KeyboardInterrupt):
+            atomic_torch_save({"format": "f", "version": 1, "x": torch.full((3,), value)}, path)
+    monkeypatch.setattr(os, "replace", real_replace)
+    assert torch.equal(load_checked(path, "f", 1, "run")["x"], torch.zeros(3))
+
+
+def test_a_units_files_copied_over_another_units_are_refused(tmp_path):
+    for name in ("hopper.pt", "hopper.pt.sha256"):
+        shutil.copy(EXPERTS / name, tmp_path / name.replace("hopper", "walker"))
+    with pytest.raises(ModelFileError, match="walker.pt has no checksum file walker.pt.sha256 "
+                                             "naming it.*copied from another file"):
+        load_policy(tmp_path / "walker.pt")
+
+
+from dc_lesson import cli   # noqa: E402
+from dc_lesson.experiments import cells   # noqa: E402
+
+CELLS = storage.DATA / "results" / "cells"
+
+
+def test_every_committed_cell_record_carries_digests_that_match():
+    paths = sorted(CELLS.glob("*/*/*.json"))
+    assert len(paths) > 1000
+    for p in paths:
+        record = cells.read_record(p)
+        assert cells.DIGEST in record, f"{p} has no digest: run dc-lesson seal-cells"
+        if record["features_file"]:
+            assert cells.FEATURES_DIGEST in record
+            cells.read_features(p, record)
+
+
+@pytest.fixture
+def study_copy(tmp_path, monkeypatch):
+    """A data folder holding a copy of bc_demos' cells (and the references they read)."""
+    for study in ("bc_demos", "reference"):
+        shutil.copytree(CELLS / study, tmp_path / "results" / "cells" / study)
+    for sub in ("demos", "experts"):
+        (tmp_path / sub).symlink_to(storage.DATA / sub)
+    monkeypatch.setenv(storage.DATA_ENV, str(tmp_path))
+    return tmp_path / "results" / "cells" / "bc_demos"
+
+
+def _edit(path, old: str, new: str):
+    text = path.read_text()
+    assert old in text
+    path.write_text(text.replace(old, new, 1))
+
+
+def test_a_hand_edited_result_is_refused_by_aggregate_naming_the_file_and_fix(study_copy,
+                                                                              capsys):
+    assert cli.main(["aggregate", "bc_demos", "--budget", "lesson"]) == 0   # the intact copy
+    out = study_copy.parent.parent / "bc_demos.json"
+    before = out.read_bytes()
+    path = sorted(study_copy.glob("*/bc__*.json"))[0]
+    value = json.loads(path.read_text())["result"]["measures"]["scaled_return"]
+    _edit(path, f'"scaled_return": {value}', f'"scaled_return": {value + 0.05}')
+    capsys.readouterr()
+    assert cli.main(["aggregate", "bc_demos", "--budget", "lesson"]) == 2
+    err = capsys.readouterr().err
+    assert str(path) in err and "does not match its sha256" in err
+    assert f"git checkout -- {path}" in err and "dc-lesson sweep bc_demos" in err
+    assert "Traceback" not in err and out.read_bytes() == before
+
+
+@pytest.mark.parametrize("replacement, kind", [("true", "bool"), ('"0.7606"', "str")])
+def test_a_wrong_type_where_a_measure_belongs_is_refused_naming_the_field(study_copy, replacement,
+                                                                         kind):
+    path = sorted(study_copy.glob("*/bc__*.json"))[0]
+    record = json.loads(path.read_text())
+    record["result"]["measures"]["scaled_return"] = json.loads(replacement)
+    for sealed in (True, False):   # with its digest, and as a record from before digests
+        if not sealed:
+            del record[cells.DIGEST]
+        path.write_text(json.dumps(record, indent=1))
+        with pytest.raises(cells.CellError) as e:
+            cells.read_record(path)
+        assert str(path) in str(e.value) and "result.measures.scaled_return" in str(e.value)
+        assert f"({kind}) where a number" in str(e.value) and "git checkout" in str(e.value)
+
+
+def test_a_bit_flip_in_a_record_or_its_features_is_refused(study_copy):
+    path = next(p for p in sorted(study_copy.parent.glob("*/*/*.json"))
+                if json.loads(p.read_text())["features_file"])
+    features = cells.features_path(path)
+    good = features.read_bytes()
+    data = bytearray(good)
+    data[len(data) // 2] ^= 4
+    features.write_bytes(bytes(data))
+    with pytest.raises(cells.CellError, match="features file .* does not match the sha256"):
+        cells.read_features(path)
+    features.write_bytes(good)
+    text = path.read_text()
+    i = next(i for i, c in enumerate(text) if c.isdigit() and i > len(text) // 3)
+    path.write_text(text[:i] + str((int(text[i]) + 1) % 10) + text[i + 1:])
+    with pytest.raises(cells.CellError, match="does not match"):
+        cells.read_record(path)
+
+
+def test_seal_adds_digests_once_and_never_seals_a_damaged_record(study_copy):
+    paths = sorted(study_copy.glob("*/*.json"))
+    for p in paths[:2]:
+        record = json.loads(p.read_text())
+        record.pop(cells.DIGEST)
+        record.pop(cells.FEATURES_DIGEST, None)
+        p.write_text(json.dumps(record, indent=1) + "\n")
+    sealed, already = cells.seal()
+    assert sealed == 2 and already == len(list(study_copy.parent.glob("*/*/*.json"))) - 2
+    assert all(cells.DIGEST in cells.read_record(p) for p in paths[:2])
+    record = json.loads(paths[0].read_text())
+    record.pop(cells.DIGEST)
+    record["result"]["measures"]["scaled_return"] = True
+    paths[0].write_text(json.dumps(record, indent=1) + "\n")
+    with pytest.raises(cells.CellError, match="where a number"):
+        cells.seal()
+    assert cells.DIGEST not in json.loads(paths[0].read_text())

@@ -14,6 +14,7 @@
                                         STUDY all: every study (--dry-run: the ledger);
                                         --recheck N: rerun N finished cells, compare
   dc-lesson aggregate STUDY             its cells -> data/results/STUDY.json (intervals)
+  dc-lesson seal-cells                  add digests to cell records made before they had them
 
 Sizes follow the budget: set DC_LESSON_BUDGET to smoke (seconds, numbers mean nothing),
 lesson (the default, minutes) or paper (the paper's sizes, hours). A wrong value, a missing
@@ -30,7 +31,7 @@ import sys
 from dc_lesson.cli._args import Parser, UsageError, positive_float, positive_int, seed_int
 from dc_lesson.cli.run import (PERFS, cmd_demos, cmd_expert, cmd_perf, cmd_tasks, cmd_tour,
                                cmd_train)
-from dc_lesson.cli.sweeps import cmd_aggregate, cmd_sweep
+from dc_lesson.cli.sweeps import cmd_aggregate, cmd_seal_cells, cmd_sweep
 
 
 # -- the parser ---------------------------------------------------------------------------------
@@ -123,8 +124,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="keep matching cells: task=reacher4 seed=0,1 learner=bc n_demos=4")
     s.add_argument("--dry-run", action="store_true", help="list the cells and their cost")
     s.add_argument("--address", default=None, help="join this Ray cluster (e.g. auto)")
-    s.add_argument("--cpus", type=int, default=None, help="local Ray workers (default: all "
-                   "cores)")
+    s.add_argument("--cpus", type=positive_int, default=None, help="local Ray workers "
+                   "(default: all cores)")
     s.add_argument("--hours", type=positive_float, default=None,
                    help="start only the cells whose estimated cost ends within this many "
                         "hours; running cells finish (a session's length)")
@@ -145,6 +146,9 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--partial", action="store_true", help="aggregate the cells run so far "
                    "(a grid still accumulating; the file says how many of how many)")
     s.set_defaults(func=cmd_aggregate)
+    s = sub.add_parser("seal-cells", help="add digests to cell records written before records "
+                       "carried them (once; a damaged record is refused, not sealed)")
+    s.set_defaults(func=cmd_seal_cells)
     return p
 
 

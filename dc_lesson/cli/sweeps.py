@@ -104,3 +104,11 @@ def cmd_aggregate(args) -> int:
         return 2
     print(f"wrote {path}")
     return 0
+
+
+def cmd_seal_cells(args) -> int:
+    """``dc-lesson seal-cells``: :func:`dc_lesson.experiments.cells.seal` on the data folder."""
+    from dc_lesson.experiments import cells
+    sealed, already = cells.seal()
+    print(f"{cells.cells_root()}: sealed {sealed} records, {already} already carried digests")
+    return 0

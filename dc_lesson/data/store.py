@@ -14,7 +14,6 @@ import json
 import numbers
 import os
 import pathlib
-import stat
 
 import numpy as np
 
@@ -79,16 +78,17 @@ def save_demos(trajectories: list[Trajectory], path) -> str:
     return sha256(path)
 
 
-def _check_regular(path: pathlib.Path, hint: str) -> None:
-    """Refuses anything but a regular file, without opening it (a FIFO's open would block)."""
+def _check_regular(path: pathlib.Path, hint: str, what: str = "demonstration file") -> None:
+    """Refuses anything but a regular file, reading nothing (the library's one guard,
+    :func:`dc_lesson.storage.open_regular`: a FIFO does not block it)."""
     try:
-        mode = os.stat(path).st_mode
+        _storage.open_regular(path, what, hint).close()
     except FileNotFoundError:
         raise DemoError(f"{path} is missing; {hint}") from None
+    except _storage.NotRegularFileError as e:
+        raise DemoError(str(e)) from None
     except OSError as e:
         raise DemoError(f"{path} cannot be read ({e.strerror}); {hint}") from None
-    if not stat.S_ISREG(mode):
-        raise DemoError(f"{path} is not a regular file (a device, FIFO or folder); {hint}")
 
 
 def demo_path(entry: dict, task: str, directory=None) -> pathlib.Path:
@@ -153,7 +153,8 @@ def read_manifest(directory=None) -> dict:
     path = pathlib.Path(directory or DEMOS_DIR) / "manifest.json"
     if not path.exists():
         return {"format": DEMO_FORMAT, "tasks": {}}
-    _check_regular(path, "regenerate the demonstrations with: dc-lesson demos --task NAME")
+    _check_regular(path, "regenerate the demonstrations with: dc-lesson demos --task NAME",
+                   "demonstration manifest")
     try:
         manifest = json.loads(path.read_text())
     except (json.JSONDecodeError, UnicodeDecodeError) as e:

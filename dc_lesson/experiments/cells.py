@@ -19,6 +19,16 @@ Files are written atomically (a temporary file and a rename: a killed sweep neve
 a record), the ``.npz`` first so a record never points at missing features, and read back with
 checks (``allow_pickle=False``; a record whose name and content disagree is refused).
 
+Integrity, as model files have it (:mod:`dc_lesson.nn.checkpoint`): a record carries
+``sha256``, the digest of its own canonical JSON without that field, and ``features_sha256``,
+its ``.npz``'s; :func:`read_record` refuses a record (or features) whose bytes no longer give
+them, so one digit changed by hand or by bit rot is an error naming the file, never a moved
+mean.  Records written before digests existed have none: they are read (and
+``dc-lesson seal-cells`` adds the digests once; every committed record has them).  Every
+measure read is type-checked too (:func:`check_types`): a ``true`` or a string where a number
+belongs is an error naming the file and the field.  Files are opened only if regular
+(:func:`dc_lesson.storage.open_regular`): a FIFO or a link to a device is refused unread.
+
 A :class:`Study` is a small declarative object: its cells at a budget and the function that
 runs one; the studies themselves live in ``dc_lesson.experiments.studies``.
 """
@@ -192,10 +202,26 @@ def record_form(result: dict) -> tuple[dict, dict]:
     return split_timing(json.loads(json.dumps(result, default=_jsonable)))
 
 
+DIGEST = "sha256"
+FEATURES_DIGEST = "features_sha256"
+
+
+def record_digest(record: dict) -> str:
+    """The sha256 of a record's canonical JSON without its own digest field."""
+    body = {k: v for k, v in record.items() if k != DIGEST}
+    return hashlib.sha256(json.dumps(body, sort_keys=True, separators=(",", ":"))
+                          .encode()).hexdigest()
+
+
+def _sealed(record: dict) -> dict:
+    return {**record, DIGEST: record_digest(record)}
+
+
 def write_record(cell: Cell, result: dict, features: dict | None, provenance: dict,
                  root=None) -> pathlib.Path:
     """Writes the cell's record (and its features first) atomically; returns the JSON path.
-    Wall-clock entries of ``result`` go to ``timing`` (:func:`split_timing`)."""
+    Wall-clock entries of ``result`` go to ``timing`` (:func:`split_timing`); the record
+    carries its own digest and its features' (module docstring)."""
     path = cell.path(root)
     numbers, timing = record_form(result)
     record = {"cell": cell.identity(), "config": cell.config, "result": numbers,
@@ -206,7 +232,8 @@ def write_record(cell: Cell, result: dict, features: dict | None, provenance: di
         buf = io.BytesIO()
         np.savez_compressed(buf, **{k: np.asarray(v, np.float32) for k, v in features.items()})
         storage.atomic_write_bytes(features_path(path), buf.getvalue())
-    storage.atomic_write_text(path, json.dumps(record, indent=1) + "\n")
+        record[FEATURES_DIGEST] = hashlib.sha256(buf.getvalue()).hexdigest()
+    storage.atomic_write_text(path, json.dumps(_sealed(record), indent=1) + "\n")
     return path
 
 
@@ -221,11 +248,63 @@ def provenance(*, command: str, budget: str, threads: int, wall_seconds: float,
             "time": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")}
 
 
-def read_record(path) -> dict:
-    """A cell record, checked: valid JSON whose identity matches its file name."""
+def restore_hint(path) -> str:
+    """How to get a cell file back: from git, or by running the cell again."""
+    path = pathlib.Path(path)
+    study = path.parent.parent.name
+    return (f"restore it with `git checkout -- {path}` (a committed record), or delete it and "
+            f"rerun the cell with `dc-lesson sweep {study}`")
+
+
+def _read(path, what: str = "cell file") -> bytes:
+    try:
+        return storage.read_bytes(path, what, restore_hint(path))
+    except storage.NotRegularFileError as e:
+        raise CellError(str(e)) from None
+
+
+# Text that may stand in a result where numbers do: the run's labels.  Everything else outside
+# a ``config`` echo (the settings a study copies into its result) must be a number or null.
+LABELS = frozenset({"task", "kind", "model", "feature", "modes"})
+
+
+def _numbers_only(value, where: str, path, labels=LABELS) -> None:
+    if isinstance(value, dict):
+        for k, v in value.items():
+            if k == "config":
+                continue
+            if k in labels and (isinstance(v, str) or (isinstance(v, list) and
+                                                       all(isinstance(x, str) for x in v))):
+                continue
+            _numbers_only(v, f"{where}.{k}", path, labels)
+    elif isinstance(value, list):
+        for i, v in enumerate(value):
+            _numbers_only(v, f"{where}[{i}]", path, labels)
+    elif value is not None and (isinstance(value, bool) or not isinstance(value, (int, float))):
+        raise CellError(f"cell file {path}: {where} is {value!r} ({type(value).__name__}) where "
+                        f"a number (or null) belongs; {restore_hint(path)}")
+
+
+def check_types(record: dict, path) -> None:
+    """Every measure a reader takes from the record is a number (or null): ``result`` and
+    ``timing`` but their labels and config echoes, and the provenance's wall time."""
+    for key in ("result", "timing"):
+        _numbers_only(record.get(key, {}), key, path)
+    prov = record.get("provenance")
+    if not isinstance(prov, dict):
+        raise CellError(f"cell file {path}: provenance is missing; {restore_hint(path)}")
+    _numbers_only({k: prov.get(k) for k in ("wall_seconds", "torch_threads")}, "provenance", path)
+    for k in ("time", "budget"):
+        if not isinstance(prov.get(k), str):
+            raise CellError(f"cell file {path}: provenance.{k} is {prov.get(k)!r} where a "
+                            f"string belongs; {restore_hint(path)}")
+
+
+def _parse(path) -> dict:
+    """The record's JSON, its name, config hash and types checked (not its digest)."""
     path = pathlib.Path(path)
     try:
-        record = json.loads(path.read_text())
+        record = json.loads(_read(path))
         ident = record["cell"]
         row = ident["learner"] + (f"-{ident['variant']}" if ident["variant"] else "")
         expected = f"{row}__n{ident['n_demos']}__s{ident['seed']}__{ident['config_hash']}"
@@ -233,23 +312,67 @@ def read_record(path) -> dict:
     except FileNotFoundError:
         raise
     except (OSError, ValueError, KeyError, TypeError) as e:
-        raise CellError(f"cell file {path} is unreadable ({e}); delete it and rerun the sweep "
-                        f"to recompute it") from None
+        raise CellError(f"cell file {path} is unreadable ({e}); {restore_hint(path)}") from None
     if not ok:
-        raise CellError(f"cell file {path} does not match its name or its config hash; delete "
-                        f"it and rerun the sweep")
+        raise CellError(f"cell file {path} does not match its name or its config hash; "
+                        f"{restore_hint(path)}")
+    check_types(record, path)
     return record
 
 
-def read_features(path) -> dict[str, np.ndarray]:
-    """The ``.npz`` of mode features beside a cell record (no pickles)."""
+def read_record(path) -> dict:
+    """A cell record, checked: a regular file of valid JSON whose identity matches its file
+    name, whose digest (if it has one) matches its content, and whose measures are numbers."""
+    record = _parse(path)
+    if DIGEST in record and record[DIGEST] != record_digest(record):
+        raise CellError(f"cell file {path} does not match its sha256 (recorded "
+                        f"{str(record[DIGEST])[:12]}..., content {record_digest(record)[:12]}"
+                        f"...): it was edited by hand or damaged since the sweep wrote it; "
+                        f"{restore_hint(path)}")
+    return record
+
+
+def read_features(path, record: dict | None = None) -> dict[str, np.ndarray]:
+    """The ``.npz`` of mode features beside a cell record (no pickles), checked against the
+    record's ``features_sha256`` when it has one (``record``: the record, if already read)."""
     fp = features_path(path)
+    record = read_record(path) if record is None else record
     try:
-        with np.load(fp, allow_pickle=False) as f:
-            return {k: f[k] for k in f.files}
+        blob = _read(fp, "cell features file")
     except FileNotFoundError:
         raise CellError(f"{fp} is missing though its record names it; delete "
                         f"{pathlib.Path(path).name} and rerun the sweep") from None
+    expected = record.get(FEATURES_DIGEST)
+    if expected is not None and hashlib.sha256(blob).hexdigest() != expected:
+        raise CellError(f"cell features file {fp} does not match the sha256 its record "
+                        f"{pathlib.Path(path).name} gives: it was changed or damaged; "
+                        f"{restore_hint(fp)}")
+    try:
+        with np.load(io.BytesIO(blob), allow_pickle=False) as f:
+            return {k: f[k] for k in f.files}
+    except Exception as e:   # zip, CRC or header errors of a damaged file
+        raise CellError(f"cell features file {fp} is unreadable ({type(e).__name__}: {e}); "
+                        f"{restore_hint(fp)}") from None
+
+
+def seal(root=None) -> tuple[int, int]:
+    """Adds the digests to every record written before records carried them (a one-off
+    migration: ``dc-lesson seal-cells``); returns ``(sealed, already sealed)``.  A record is
+    checked first (name, hash, types, features readable), so a damaged one is refused, not
+    sealed; a sealed record is verified, never sealed again."""
+    sealed = already = 0
+    for p in sorted(pathlib.Path(root or cells_root()).glob("*/*/*.json")):
+        record = _parse(p)
+        if DIGEST in record:
+            read_record(p)
+            already += 1
+            continue
+        if record.get("features_file"):
+            read_features(p)
+            record[FEATURES_DIGEST] = hashlib.sha256(_read(features_path(p))).hexdigest()
+        storage.atomic_write_text(p, json.dumps(_sealed(record), indent=1) + "\n")
+        sealed += 1
+    return sealed, already
 
 
 def is_done(cell: Cell, root=None) -> bool:
@@ -265,7 +388,7 @@ def load(cell: Cell, root=None) -> tuple[dict, dict]:
     """``(record, features)`` of a finished cell (features ``{}`` when it keeps none)."""
     path = cell.path(root)
     record = read_record(path)
-    return record, (read_features(path) if record["features_file"] else {})
+    return record, (read_features(path, record) if record["features_file"] else {})
 
 
 def records(study: str, root=None) -> list[dict]:
@@ -306,6 +429,8 @@ class Study:
         return sorted(out.values(), key=lambda c: c.stage)
 
 
-__all__ = ["Cell", "CellError", "Study", "canonical", "cells_root", "config_hash", "full_result",
-           "is_done", "load", "make_cell", "merged", "provenance", "read_features",
-           "read_record", "record_form", "records", "split_timing", "write_record"]
+__all__ = ["Cell", "CellError", "DIGEST", "FEATURES_DIGEST", "LABELS", "Study", "canonical",
+           "cells_root", "check_types", "config_hash", "full_result", "is_done", "load",
+           "make_cell", "merged", "provenance", "read_features", "read_record",
+           "record_digest", "record_form", "records", "restore_hint", "seal", "split_timing",
+           "write_record"]

@@ -30,7 +30,7 @@ import time
 
 import numpy as np
 
-from dc_lesson import data
+from dc_lesson import data, storage
 from dc_lesson.data import rollout
 from dc_lesson import tasks as _tasks
 from dc_lesson.data.modes import mode_shares
@@ -65,8 +65,11 @@ def _resumable_episodes(task: str, partial, stamp, fingerprint: str, seed: int,
     episodes first, first + 1, ... of ``seed`` by the expert with ``fingerprint``."""
     if not (partial.exists() and stamp.exists()):
         return []
+    fix = f"delete it (the episodes it held are collected again by dc-lesson demos --task {task})"
+    for f in (stamp, partial):   # a FIFO would block the reads below, a device never end
+        storage.open_regular(f, "partial demonstration file", fix).close()
     try:
-        info = json.loads(stamp.read_text())
+        info = json.loads(storage.read_text(stamp, "partial demonstration file", fix))
         if not isinstance(info, dict) or info.get("fingerprint") != fingerprint or \
                 info.get("seed") != seed or info.get("first", 0) != first:
             return []
@@ -180,7 +183,10 @@ def make_demos(task: str, command: str = "", directory=None, n_demos: int = N_DE
             # sequential part to episodes 0..k-1.
             split, tail = n_more, []
             for f in sorted(part.glob(f"{task}-eval-from*.npz")):
-                k = int(f.stem.rsplit("from", 1)[1])
+                k = f.stem.rsplit("from", 1)[1]
+                if not k.isdigit():
+                    continue   # not a file this code wrote
+                k = int(k)
                 eps = _resumable_episodes(task, f, f.with_suffix(".json"), fingerprint,
                                           EXPERT_EVAL_SEED, k)
                 if 0 < k < split and len(eps) == n_more - k:

@@ -19,12 +19,15 @@ Every failure is a :class:`ModelFileError` naming the file and the command that 
 
 from __future__ import annotations
 
+import hashlib
+import io
 import os
 import pathlib
 
 import torch
 
-from dc_lesson.storage import atomic_write, atomic_write_text, sha256
+from dc_lesson.storage import (NotRegularFileError, atomic_write, atomic_write_text,
+                               read_bytes, read_text, sha256)
 
 
 class ModelFileError(ValueError):
@@ -47,17 +50,29 @@ def _sidecar_text(path: pathlib.Path, *digests: str) -> str:
     return "".join(f"{d}  {path.name}\n" for d in digests)
 
 
-def read_checksums(path) -> list[str]:
-    """The digests ``path``'s sidecar accepts (usually one); [] if it has none or a bad one."""
+def read_checksums(path, strict: bool = False, fix: str = "") -> list[str]:
+    """The digests ``path``'s sidecar accepts (usually one); [] if it has none or a bad one.
+
+    Only lines naming ``path`` itself count: a sidecar copied with another model's file
+    (``hopper.pt.sha256`` over ``walker.pt.sha256``) accepts nothing.  A sidecar that is not a
+    regular file (a FIFO, a link to a device) is never read; with ``strict`` it is an error."""
+    path = pathlib.Path(path)
     side = checksum_path(path)
     try:
-        lines = side.read_text().splitlines()
+        fix = fix or f"rerun the command that wrote {path.name}"
+        lines = read_text(side, "checksum file", f"delete it; {fix}").splitlines()
+    except NotRegularFileError:
+        if strict:
+            raise
+        return []
     except (OSError, UnicodeDecodeError):
         return []
     out = []
     for line in lines:
-        digest = line.split(" ", 1)[0].strip().lower()
-        if len(digest) == 64 and all(c in "0123456789abcdef" for c in digest):
+        digest, _, name = line.partition(" ")
+        digest, name = digest.strip().lower(), name.strip().lstrip("*")
+        if len(digest) == 64 and all(c in "0123456789abcdef" for c in digest) \
+                and name == path.name:
             out.append(digest)
     return out
 
@@ -85,8 +100,13 @@ def atomic_torch_save(obj, path) -> pathlib.Path:
         digest["new"] = sha256(f.name)
 
     # The sidecar first accepts the old and the new digest, then (after the rename) only the new.
+    # "The old" is the digest of the file on disk now, if its sidecar accepts it: after a save
+    # killed before its rename, the sidecar's first line is that save's digest, not the file's.
     side = checksum_path(path)
-    old = read_checksums(path)[:1] if path.exists() else []
+    old = []
+    if path.is_file():
+        current = sha256(path)
+        old = [current] if current in read_checksums(path) else []
 
     def write_and_announce(f):
         write(f)
@@ -119,20 +139,23 @@ def load_checked(path, fmt: str, version: int, what: str, fix: str | None = None
     fix = fix or f"delete it and rerun the command that wrote it"
     if not path.exists():
         raise FileNotFoundError(f"{what} file {path} does not exist; {fix}")
-    if not path.is_file():
-        raise ModelFileError(f"{what} file {path} is not a regular file; {fix}")
-    accepted = read_checksums(path)
+    try:
+        blob = read_bytes(path, f"{what} file", fix)   # one read: hashed, then loaded
+        accepted = read_checksums(path, strict=True, fix=fix)
+    except NotRegularFileError as e:
+        raise ModelFileError(str(e)) from None
     if not accepted:
         raise ModelFileError(f"{what} file {path} has no checksum file "
-                             f"{checksum_path(path).name} (or an unreadable one), so its "
-                             f"integrity cannot be checked; {fix}")
-    digest = sha256(path)
+                             f"{checksum_path(path).name} naming it (none, an unreadable one, or "
+                             f"one copied from another file), so its integrity cannot be "
+                             f"checked; {fix}")
+    digest = hashlib.sha256(blob).hexdigest()
     if digest not in accepted:
         raise ModelFileError(f"{what} file {path} does not match its sha256 in "
                              f"{checksum_path(path).name} (file {digest[:12]}..., recorded "
                              f"{accepted[0][:12]}...): it is corrupted or was changed; {fix}")
     try:
-        obj = torch.load(path, weights_only=True, map_location="cpu")
+        obj = torch.load(io.BytesIO(blob), weights_only=True, map_location="cpu")
     except Exception as e:  # torch raises several types for a damaged or foreign file
         raise ModelFileError(f"{what} file {path} could not be read: {_torch_reason(e)}; "
                              f"{fix}") from None
