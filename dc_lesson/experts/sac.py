@@ -1,0 +1,316 @@
+"""Soft actor-critic (Haarnoja et al. 2018), the off-policy learner behind the network experts
+of ``walker``, ``ant`` and ``humanoid``: ``dc-lesson expert sac --task NAME``.
+
+Why SAC here: the library's PPO stayed below the floors on these tasks after 5M interactions
+(walker 328, ant 160; ``data/experts/walker.json``), and the sampling planner that meets them
+is not a Markov policy, so BC cannot clone it (scaled return about 0). SAC reuses every
+transition many times, which on a 2-core machine is what matters.
+
+One readable loop, CleanRL's ``sac_continuous_action.py`` with every detail named:
+
+* a tanh-squashed Gaussian actor, a = tanh(u), u ~ N(mu(s), sigma(s)^2), log-prob corrected by
+  sum log(1 - tanh(u)^2) (Appendix C of the paper);
+* two Q networks and their Polyak-averaged targets (tau = 0.005); the target is
+  r + gamma * (min_j Q'_j(s', a') - alpha log pi(a'|s')), a' ~ pi(.|s');
+* the entropy temperature alpha tuned towards the target entropy -act_dim;
+* the fixed horizon is a time limit, not a terminal state, so the target always bootstraps
+  (``done`` is never used to cut it: none of these ports ends an episode early);
+* ``learning_starts`` uniformly random actions first; then one gradient step per environment
+  step; the actor and alpha every ``policy_frequency`` steps, that many times (CleanRL's
+  delayed update).
+
+The two Q networks are one module whose weights carry a leading ensemble axis (a batched
+matrix product), which on one CPU thread is about twice as fast as two separate networks and
+gives the same function.
+
+Checkpoints (``data/experts/checkpoints/UNIT.sac``, not committed: the replay buffer is
+hundreds of MB) hold the networks, optimisers, buffer, generators and environment state, so a
+run cut by a session's end resumes exactly where it stopped. The finished actor becomes a
+:class:`~dc_lesson.nn.policies.GaussianPolicy` expert by distillation (``experts/distil.py``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json as _json
+import math
+import pathlib
+import time
+
+import numpy as np
+import torch
+from torch import nn
+import torch.nn.functional as F
+
+from dc_lesson import tasks as _tasks
+from dc_lesson.nn.checkpoint import atomic_torch_save, load_checked
+
+CHECKPOINT_FORMAT, CHECKPOINT_VERSION = "dc_lesson.sac", 1
+
+
+@dataclasses.dataclass(frozen=True)
+class SACConfig:
+    total_steps: int = 1_000_000
+    buffer_size: int = 1_000_000
+    gamma: float = 0.99
+    tau: float = 0.005               # Polyak averaging of the target Q networks
+    batch_size: int = 256
+    learning_starts: int = 5_000     # random actions before the first update
+    policy_lr: float = 3e-4
+    q_lr: float = 1e-3
+    policy_frequency: int = 2        # actor and alpha updated every 2 steps, twice (CleanRL)
+    hidden: tuple = (256, 256)
+    log_std_min: float = -5.0
+    log_std_max: float = 2.0
+    autotune: bool = True            # alpha tuned towards entropy -act_dim
+    alpha: float = 0.2               # the fixed temperature when not autotuned
+    log_every: int = 5_000           # a log row (and an evaluation) every this many steps
+    checkpoint_every: int = 25_000
+    eval_episodes: int = 2
+    seed: int = 0
+
+    def __post_init__(self):
+        for name in ("total_steps", "buffer_size", "batch_size", "policy_frequency",
+                     "log_every", "checkpoint_every", "eval_episodes"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int) or v < 1:
+                raise ValueError(f"SACConfig.{name} must be a positive integer, got {v!r}")
+        if isinstance(self.learning_starts, bool) or not isinstance(self.learning_starts, int) \
+                or not self.batch_size <= self.learning_starts:
+            raise ValueError(f"SACConfig.learning_starts must be an integer >= batch_size "
+                             f"({self.batch_size}), got {self.learning_starts!r}")
+        for name in ("policy_lr", "q_lr", "tau", "alpha"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+                raise ValueError(f"SACConfig.{name} must be a positive finite number, got {v!r}")
+        if not 0 < self.gamma < 1 or self.tau > 1:
+            raise ValueError("SACConfig needs 0 < gamma < 1 and 0 < tau <= 1")
+        if not self.hidden or any(isinstance(h, bool) or not isinstance(h, int) or h < 1
+                                  for h in self.hidden):
+            raise ValueError(f"SACConfig.hidden must be positive layer widths, got "
+                             f"{self.hidden!r}")
+
+
+# -- networks --------------------------------------------------------------------------------
+
+class Actor(nn.Module):
+    """mu(s) and log sigma(s) from one ReLU MLP; actions a = tanh(u)."""
+
+    def __init__(self, obs_dim, act_dim, hidden, log_std_min, log_std_max):
+        super().__init__()
+        layers, d = [], obs_dim
+        for h in hidden:
+            layers += [nn.Linear(d, h), nn.ReLU()]
+            d = h
+        self.trunk = nn.Sequential(*layers)
+        self.mu = nn.Linear(d, act_dim)
+        self.log_std = nn.Linear(d, act_dim)
+        self.log_std_min, self.log_std_max = log_std_min, log_std_max
+
+    def forward(self, obs):
+        h = self.trunk(obs)
+        # squashed into [min, max] as CleanRL does, so sigma never explodes or vanishes
+        log_std = torch.tanh(self.log_std(h))
+        log_std = self.log_std_min + 0.5 * (self.log_std_max - self.log_std_min) * (log_std + 1)
+        return self.mu(h), log_std
+
+    def sample(self, obs, generator=None):
+        """(a, log pi(a|s), tanh(mu)): a reparameterised sample and its corrected log-prob."""
+        mu, log_std = self(obs)
+        std = log_std.exp()
+        u = mu + std * torch.randn(mu.shape, generator=generator)
+        a = torch.tanh(u)
+        logp = (-0.5 * ((u - mu) / std) ** 2 - log_std - 0.5 * math.log(2 * math.pi)).sum(-1)
+        logp = logp - torch.log(1 - a.pow(2) + 1e-6).sum(-1)
+        return a, logp, torch.tanh(mu)
+
+    def act_numpy(self, obs: np.ndarray) -> np.ndarray:
+        """The deterministic action tanh(mu(s)) for a NumPy batch (the expert's action)."""
+        with torch.no_grad():
+            return torch.tanh(self(torch.as_tensor(obs, dtype=torch.float32))[0]).numpy()
+
+
+class TwinQ(nn.Module):
+    """Two Q networks as one: weights (2, in, out), one batched matmul per layer."""
+
+    def __init__(self, in_dim, hidden, n=2):
+        super().__init__()
+        dims = [in_dim, *hidden, 1]
+        self.weights = nn.ParameterList()
+        self.biases = nn.ParameterList()
+        for a, b in zip(dims[:-1], dims[1:]):
+            w = torch.empty(n, a, b)
+            for k in range(n):   # nn.Linear's default initialisation, per member
+                lin = nn.Linear(a, b)
+                w[k] = lin.weight.detach().T
+            self.weights.append(nn.Parameter(w))
+            bound = 1 / math.sqrt(a)
+            self.biases.append(nn.Parameter(torch.empty(n, 1, b).uniform_(-bound, bound)))
+
+    def forward(self, obs, act):
+        """Q values, shape (2, B)."""
+        x = torch.cat([obs, act], -1).unsqueeze(0).expand(len(self.weights[0]), -1, -1)
+        for i, (w, b) in enumerate(zip(self.weights, self.biases)):
+            x = torch.baddbmm(b, x, w)
+            if i < len(self.weights) - 1:
+                x = F.relu(x)
+        return x.squeeze(-1)
+
+
+# -- the loop --------------------------------------------------------------------------------
+
+def evaluate(task: str, actor: Actor, episodes: int, seed: int) -> float:
+    """Mean return of the deterministic action tanh(mu) over ``episodes`` fresh episodes."""
+    env = _tasks.load_vec(task, episodes)
+    obs, _ = env.reset(seed + np.arange(episodes))
+    total = np.zeros(episodes)
+    done = False
+    while not done:
+        obs, r, _, done = env.step(actor.act_numpy(obs))
+        total += r
+    return float(total.mean())
+
+
+def _alpha_of(cfg, log_alpha):
+    return log_alpha.exp().item() if cfg.autotune else cfg.alpha
+
+
+def train(task: str, config: SACConfig = SACConfig(), checkpoint=None, progress=None,
+          stop_after_seconds: float | None = None) -> dict:
+    """Trains SAC on ``task``'s own reward; returns ``{"actor", "log", "done", ...}``.
+
+    ``checkpoint``: a path; resumed from when it exists (same config required), written every
+    ``checkpoint_every`` steps (always at an episode's end, so the environment restarts from a
+    seed and the resumed run is the uninterrupted one, bit for bit at one thread).
+    ``stop_after_seconds``: stop at the first checkpoint after this much wall time (a chunk).
+    ``progress``: a callable given each log row.
+    """
+    cfg = config
+    spec = _tasks.SPECS[_tasks.check_name(task)]
+    if cfg.checkpoint_every % spec.horizon or cfg.log_every % spec.horizon:
+        raise ValueError(f"checkpoint_every and log_every must be multiples of {task}'s "
+                         f"horizon ({spec.horizon}), so a checkpoint falls between episodes")
+    obs_dim, act_dim = spec.obs_dim, spec.act_dim
+    torch.manual_seed(cfg.seed)
+    actor = Actor(obs_dim, act_dim, cfg.hidden, cfg.log_std_min, cfg.log_std_max)
+    qf = TwinQ(obs_dim + act_dim, cfg.hidden)
+    qf_target = TwinQ(obs_dim + act_dim, cfg.hidden)
+    qf_target.load_state_dict(qf.state_dict())
+    log_alpha = torch.zeros(1, requires_grad=True)
+    target_entropy = -float(act_dim)
+    q_opt = torch.optim.Adam(qf.parameters(), lr=cfg.q_lr, fused=True)
+    pi_opt = torch.optim.Adam(actor.parameters(), lr=cfg.policy_lr, fused=True)
+    a_opt = torch.optim.Adam([log_alpha], lr=cfg.q_lr)
+    n = min(cfg.buffer_size, cfg.total_steps)
+    buf = {"obs": np.zeros((n, obs_dim), np.float32), "act": np.zeros((n, act_dim), np.float32),
+           "rew": np.zeros(n, np.float32), "next_obs": np.zeros((n, obs_dim), np.float32)}
+    rng = np.random.default_rng(cfg.seed)           # random actions, minibatch indices
+    gen = torch.Generator().manual_seed(cfg.seed)   # the actor's sampling noise
+    step, size, ptr, episode, log, seconds = 0, 0, 0, 0, [], 0.0
+    ckpt = pathlib.Path(checkpoint) if checkpoint else None
+    if ckpt is not None and ckpt.exists():
+        st = load_checked(ckpt, CHECKPOINT_FORMAT, CHECKPOINT_VERSION, "SAC checkpoint",
+                          f"delete {ckpt} to train from the start")
+        if st["config"] != json_config(cfg):
+            raise ValueError(f"the SAC checkpoint {ckpt} was made with another configuration; "
+                             f"delete it to train from the start")
+        actor.load_state_dict(st["actor"]); qf.load_state_dict(st["qf"])
+        qf_target.load_state_dict(st["qf_target"])
+        with torch.no_grad():
+            log_alpha.copy_(st["log_alpha"])
+        for o, s in zip((q_opt, pi_opt, a_opt), st["opts"]):
+            o.load_state_dict(s)
+        size, ptr, step, episode = st["size"], st["ptr"], st["step"], st["episode"]
+        for k in buf:
+            buf[k][:size] = st["buffer"][k].numpy()
+        rng.bit_generator.state = _json.loads(st["np_rng"])
+        gen.set_state(st["torch_gen"])
+        log, seconds = _json.loads(st["log"]), st["seconds"]
+
+    def save():
+        atomic_torch_save({
+            "format": CHECKPOINT_FORMAT, "version": CHECKPOINT_VERSION,
+            "config": json_config(cfg), "actor": actor.state_dict(), "qf": qf.state_dict(),
+            "qf_target": qf_target.state_dict(), "log_alpha": log_alpha.detach().clone(),
+            "opts": [o.state_dict() for o in (q_opt, pi_opt, a_opt)],
+            "buffer": {k: torch.from_numpy(v[:size].copy()) for k, v in buf.items()},
+            "size": size, "ptr": ptr, "step": step, "episode": episode,
+            "np_rng": _json.dumps(rng.bit_generator.state), "torch_gen": gen.get_state(),
+            "log": _json.dumps(log), "seconds": seconds}, ckpt)
+
+    env = _tasks.make(task)
+    t_chunk = time.perf_counter()
+    t_last = t_chunk
+    q_hist, pi_hist, ret_hist = [], [], []
+    while step < cfg.total_steps:
+        # one episode (the fixed horizon; a time limit, so every target bootstraps)
+        obs = env.reset(seed=cfg.seed * 1_000_003 + episode)
+        ep_ret = 0.0
+        for _ in range(spec.horizon):
+            if step < cfg.learning_starts:
+                act = rng.uniform(-1, 1, act_dim).astype(np.float32)
+            else:
+                with torch.no_grad():
+                    a, _, _ = actor.sample(torch.as_tensor(obs, dtype=torch.float32)[None],
+                                           generator=gen)
+                act = a[0].numpy()
+            next_obs, r, _ = env.step(act)
+            buf["obs"][ptr], buf["act"][ptr], buf["rew"][ptr] = obs, act, r
+            buf["next_obs"][ptr] = next_obs
+            ptr, size = (ptr + 1) % n, min(size + 1, n)
+            obs, ep_ret, step = next_obs, ep_ret + r, step + 1
+            if step > cfg.learning_starts:
+                idx = rng.integers(0, size, cfg.batch_size)
+                b = {k: torch.from_numpy(v[idx]) for k, v in buf.items()}
+                alpha = _alpha_of(cfg, log_alpha)
+                # critic: soft Bellman target from the twin targets' minimum
+                with torch.no_grad():
+                    na, nlogp, _ = actor.sample(b["next_obs"], generator=gen)
+                    q_next = qf_target(b["next_obs"], na).min(0).values - alpha * nlogp
+                    target = b["rew"] + cfg.gamma * q_next
+                q_loss = F.mse_loss(qf(b["obs"], b["act"]),
+                                    target.expand(2, -1), reduction="none").mean(1).sum()
+                q_opt.zero_grad(); q_loss.backward(); q_opt.step()
+                q_hist.append(q_loss.item())
+                if step % cfg.policy_frequency == 0:
+                    for _ in range(cfg.policy_frequency):
+                        pa, logp, _ = actor.sample(b["obs"], generator=gen)
+                        pi_loss = (alpha * logp - qf(b["obs"], pa).min(0).values).mean()
+                        pi_opt.zero_grad(); pi_loss.backward(); pi_opt.step()
+                        pi_hist.append(pi_loss.item())
+                        if cfg.autotune:
+                            a_loss = -(log_alpha.exp() * (logp.detach()
+                                                          + target_entropy)).mean()
+                            a_opt.zero_grad(); a_loss.backward(); a_opt.step()
+                            alpha = log_alpha.exp().item()
+                with torch.no_grad():   # Polyak averaging of the targets
+                    for p, pt in zip(qf.parameters(), qf_target.parameters()):
+                        pt.lerp_(p, cfg.tau)
+        episode += 1
+        ret_hist.append(ep_ret)
+        if step % cfg.log_every == 0:
+            now = time.perf_counter()
+            seconds += now - t_last
+            row = {"steps": step, "train_return": float(np.mean(ret_hist)),
+                   "eval_return": evaluate(task, actor, cfg.eval_episodes,
+                                           10_000_000 + step),
+                   "q_loss": float(np.mean(q_hist)) if q_hist else None,
+                   "pi_loss": float(np.mean(pi_hist)) if pi_hist else None,
+                   "alpha": _alpha_of(cfg, log_alpha),
+                   "seconds": round(seconds, 1),
+                   "steps_per_second": round(cfg.log_every / max(now - t_last, 1e-9), 1)}
+            t_last = time.perf_counter()
+            log.append(row)
+            q_hist, pi_hist, ret_hist = [], [], []
+            if progress:
+                progress(row)
+        if ckpt is not None and (step % cfg.checkpoint_every == 0 or step >= cfg.total_steps):
+            save()
+            if stop_after_seconds is not None and \
+                    time.perf_counter() - t_chunk >= stop_after_seconds:
+                break
+    return {"actor": actor, "log": log, "done": step >= cfg.total_steps, "steps": step}
+
+
+def json_config(cfg: SACConfig) -> dict:
+    return _json.loads(_json.dumps(dataclasses.asdict(cfg)))
