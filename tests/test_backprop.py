@@ -1,5 +1,6 @@
 """The hand-written backward passes give autograd's gradients to the bit."""
 
+import contextlib
 import dataclasses
 
 import pytest
@@ -101,6 +102,7 @@ def _batch(obs_dim, act_dim, gen, t=64, n=4):
                      returns=torch.randn(t, n, generator=gen) * 3)
 
 
+@fast.on()      # the by-hand path is the fast path's
 def _update(monkeypatch, by_hand: bool):
     gen = torch.Generator().manual_seed(5)
     torch.manual_seed(0)     # the initial weights
@@ -133,7 +135,33 @@ def test_ppo_update_by_hand_ends_where_autograd_ends(monkeypatch):
     assert log_auto == log_hand
 
 
+def test_the_readers_ppo_update_is_the_fast_paths_with_the_same_optimiser():
+    """The reader's path (autograd through ``minibatch_loss``, ``optimizer.step()``, torch's
+    clip) against the fast path (by hand, lean step), on one fused optimiser each: the same
+    bits.  What differs between the paths in a real run is only which optimiser ``train``
+    builds (fused or not) and the rollout's forward pass."""
+    def run(on: bool):
+        gen = torch.Generator().manual_seed(5)
+        torch.manual_seed(0)
+        pi, v = GaussianPolicy(9, 3, norm_obs=True), ValueNetwork(9, norm_obs=True)
+        for net in (pi, v):
+            _moved(net, gen, 0.2)
+            net.update_obs_norm(torch.randn(100, 9, generator=gen))
+        with fast.on():
+            opt = fast.adamw([*pi.parameters(), *v.parameters()], lr=1e-3)
+        cfg = dataclasses.replace(ppo.PPOConfig(), n_epochs=3, n_minibatches=4)
+        with (fast.on() if on else contextlib.nullcontext()):
+            logs = [ppo.ppo_update(pi, v, opt, _batch(9, 3, gen), cfg,
+                                   torch.Generator().manual_seed(1)) for _ in range(3)]
+        return [p.detach().clone() for p in (*pi.parameters(), *v.parameters())], logs
+    w_read, log_read = run(False)
+    w_fast, log_fast = run(True)
+    assert all(torch.equal(a, b) for a, b in zip(w_read, w_fast))
+    assert log_read == log_fast
+
+
 def test_bc_step_by_hand_ends_where_autograd_ends():
+    @fast.on()
     def run(disabled: bool):
         gen = torch.Generator().manual_seed(2)
         torch.manual_seed(0)

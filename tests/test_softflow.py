@@ -410,7 +410,12 @@ def test_the_flows_tanh_is_numpys_to_one_ulp_and_torchs_on_request():
     from dc_lesson.density import _trace
     from dc_lesson.nn import fast
     x = torch.linspace(-12, 12, 400_001)
-    ours, theirs = _trace.tanh(x.clone()), torch.tanh(x)
+    with fast.on():     # NumPy's kernel is the fast path's; the reader's path takes torch's
+        ours = _trace.tanh(x.clone())
+        a = x.clone()
+        assert _trace.tanh(a, inplace=True) is a and torch.equal(a, ours)
+    theirs = torch.tanh(x)
+    assert torch.equal(_trace.tanh(x.clone()), theirs)
     assert torch.equal(ours, torch.from_numpy(np.tanh(x.numpy())))   # NumPy's kernel
     ulp = torch.finfo(torch.float32).eps * theirs.abs().clamp_min(2.0 ** -126)
     assert ((ours - theirs).abs() <= ulp).all()                     # within one ulp
@@ -418,13 +423,17 @@ def test_the_flows_tanh_is_numpys_to_one_ulp_and_torchs_on_request():
     assert torch.equal(_trace.tanh(x.clone(), kernel="torch"), theirs)
     with fast.disabled():
         assert torch.equal(_trace.tanh(x.clone()), theirs)
-    a = x.clone()
-    assert _trace.tanh(a, inplace=True) is a and torch.equal(a, ours)
 
 
 def test_a_flows_tanh_kernel_is_its_own_saved_with_it_and_checked(tmp_path):
     """A NumPy-tanh flow evaluates with NumPy's kernel (log-densities a hair from the same
     weights under torch's), keeps it through a file, and an unknown kernel is refused."""
+    from dc_lesson.nn import fast
+    with fast.on():     # the kernel a sweep worker's DC takes
+        _tanh_kernel_is_the_flows_own(tmp_path)
+
+
+def _tanh_kernel_is_the_flows_own(tmp_path):
     cfg = dataclasses.replace(FAST, iterations=20, tanh="numpy")
     x = torch.randn(300, 3, generator=torch.Generator().manual_seed(0))
     flow, _ = sf.fit(x, cfg, progress=False)
@@ -448,7 +457,9 @@ def test_the_flows_tanh_differentiates_as_autograds():
     g = torch.Generator().manual_seed(0)
     a = (3 * torch.randn(64, 32, generator=g)).requires_grad_()
     w = torch.randn(64, 32, generator=g)
-    h = _trace.tanh(a)
+    from dc_lesson.nn import fast
+    with fast.on():     # NumPy's kernel, differentiable
+        h = _trace.tanh(a)
     (grad,) = torch.autograd.grad((h * w).sum(), a)
     assert torch.equal(grad, torch.ops.aten.tanh_backward(w, h.detach()))   # autograd's kernel
     assert torch.allclose(grad, w * (1 - h.detach() ** 2), rtol=1e-6, atol=1e-7)

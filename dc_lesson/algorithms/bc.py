@@ -4,7 +4,7 @@ The objective.  Given expert pairs D_E = {(s, a)}, BC fits the policy by maximum
 
     max_theta  E_{(s, a) in D_E} [ log pi_theta(a | s) ]                               (Eq. 1)
 
-Here pi_theta is the library's :class:`~dc_lesson.policies.GaussianPolicy` (an MLP mean and a
+Here pi_theta is the library's :class:`~dc_lesson.nn.policies.GaussianPolicy` (an MLP mean and a
 learned state-independent log-std), the same class PPO trains, so a BC policy can start PPO or
 DC.  For a Gaussian the negative log-likelihood of one pair is
 
@@ -48,6 +48,11 @@ Choices made where the paper is silent (each a field of :class:`BCConfig`):
 Determinism: ``config.seed`` decides the split, the initial weights and the minibatch order
 (three seeds drawn from NumPy's ``SeedSequence``), so one configuration gives the same policy
 to the last digit (in one process with a fixed thread count).
+
+Speed (``dc_lesson.nn.fast``): :func:`bc_step` as you read it, :func:`bc_loss` through autograd
+and AdamW's ``step()``, is what ``train`` runs by default; sweep workers and benchmarks turn on
+``fast.on()``, where the same gradients are taken by hand and the optimiser is fused (the same
+update to float32 rounding).
 """
 
 from __future__ import annotations
@@ -216,20 +221,34 @@ def bc_step(policy: GaussianPolicy, optimizer: torch.optim.Optimizer, obs, act,
     (before the step) and the gradient norm.  DC's Algorithm 2 calls this on expert plus
     learner pairs; ``extra_loss()``, if given, is added to the NLL (consensus ADMM's proximal
     term)."""
+    params = [p for group in optimizer.param_groups for p in group["params"]]
+    # clip_grad_norm_ with an infinite bound measures the norm without changing the gradient.
+    bound = math.inf if max_grad_norm is None else max_grad_norm
+    if _fast.enabled():   # the same step by faster kernels (dc_lesson.nn.fast)
+        return _fast_step(policy, optimizer, params, obs, act, bound, extra_loss)
+    optimizer.zero_grad()
+    terms = bc_loss(policy, obs, act)
+    loss = terms["nll"] if extra_loss is None else terms["nll"] + extra_loss()
+    loss.backward()
+    grad_norm = torch.nn.utils.clip_grad_norm_(params, bound)
+    optimizer.step()
+    return {**{k: float(v.detach()) for k, v in terms.items()}, "grad_norm": float(grad_norm)}
+
+
+def _fast_step(policy, optimizer, params, obs, act, bound, extra_loss) -> dict[str, float]:
+    """:func:`bc_step` on the fast path: a Gaussian tanh MLP's gradients by hand
+    (:func:`dc_lesson.nn.backprop.bc_grads`, autograd's to the bit), the clip and the
+    optimiser step as their bare kernel calls (torch's to the bit)."""
     _fast.zero_grad(optimizer)
-    if (extra_loss is None and _fast.enabled() and getattr(policy, "log_std", None) is not None
+    if (extra_loss is None and getattr(policy, "log_std", None) is not None
             and _backprop.supported(policy.mean_net)):
-        # the same gradients, differentiated without autograd (dc_lesson.nn.backprop)
         terms = _backprop.bc_grads(policy, torch.as_tensor(obs, dtype=torch.float32),
                                    torch.as_tensor(act, dtype=torch.float32))
     else:
         terms = bc_loss(policy, obs, act)
         loss = terms["nll"] if extra_loss is None else terms["nll"] + extra_loss()
         loss.backward()
-    params = [p for group in optimizer.param_groups for p in group["params"]]
-    # clip_grad_norm_ with an infinite bound measures the norm without changing the gradient.
-    grad_norm = _fast.clip_grad_norm_(
-        params, math.inf if max_grad_norm is None else max_grad_norm)
+    grad_norm = _fast.clip_grad_norm_(params, bound)
     _fast.optimizer_step(optimizer)
     return {**{k: float(v.detach()) for k, v in terms.items()}, "grad_norm": float(grad_norm)}
 

@@ -67,7 +67,7 @@ Implementation details, each a field of :class:`GAILConfig`:
   gp * (||grad_x f(x)|| - 1)^2 at random interpolates of expert and learner inputs (as in
   DAC, Kostrikov et al. 2019), which keeps f smooth and D from winning outright.
 * The BC warm start (``bc_warm_start``, used by the benchmark through
-  :func:`dc_lesson.bc.warm_start`): GAIL starts from BC's policy, whose mean network it keeps.
+  :func:`dc_lesson.algorithms.bc.warm_start`): GAIL starts from BC's policy, whose mean network it keeps.
 * The start's noise (``start_log_std``; None, i.e. kept, by default, and
   ``TUNED_START_LOG_STD`` = -2 in :func:`preset`, which ``table1`` and ``table3`` use): a
   given Gaussian start policy's log-std is set to it before the first iteration (the
@@ -313,9 +313,14 @@ def discriminator_step(disc: Discriminator, optimizer: torch.optim.Optimizer, ex
     """One Adam step on :func:`discriminator_loss`; returns its terms (before the step)."""
     terms = discriminator_loss(disc, expert_obs, expert_act, learner_obs, learner_act,
                                grad_penalty, generator)
-    _fast.zero_grad(optimizer)
-    terms["loss"].backward()
-    _fast.optimizer_step(optimizer)
+    if _fast.enabled():   # the same step without torch's wrappers (dc_lesson.nn.fast)
+        _fast.zero_grad(optimizer)
+        terms["loss"].backward()
+        _fast.optimizer_step(optimizer)
+    else:
+        optimizer.zero_grad()
+        terms["loss"].backward()
+        optimizer.step()
     return {k: float(v.detach()) for k, v in terms.items()}
 
 

@@ -18,7 +18,7 @@ continues from.
 
 Determinism: ``config.seed`` decides the network initialisation, one ``torch.Generator`` (action
 noise and minibatch order) and the stream of episode seeds (NumPy's ``SeedSequence``, as in
-:func:`dc_lesson.rollout.episode_seeds`), so one configuration always gives the same numbers.
+:func:`dc_lesson.data.rollout.episode_seeds`), so one configuration always gives the same numbers.
 A checkpoint stores all of that state, so a resumed run ends exactly where an uninterrupted one
 does.
 
@@ -32,12 +32,15 @@ training episodes change; the task, and how an expert is judged, do not.
 Unlike CleanRL there is no reward normalisation: the task rewards lie in [0, 1], and an
 algorithm that brings its own reward (DC) decides its scale.
 
-Speed (``dc_lesson.nn.fast``): a minibatch step on 64-unit networks is mostly torch's per-call
-overhead, so on the fast path the batch is normalised once per update, the gradients of the
-usual loss (no entropy term, no value clipping, no proximal term) are taken by hand
-(:func:`dc_lesson.nn.backprop.ppo_grads`), and the clip and the fused AdamW step call their
-kernels directly.  Each gives autograd's and torch's numbers to the bit (the tests compare
-them); ``fast.disabled()`` runs the autograd path with a validated Normal.
+Speed (``dc_lesson.nn.fast``): what you read here is what ``train`` runs by default: the loss
+of :func:`minibatch_loss` through autograd, AdamW's ``step()``, the rollout through the torch
+modules.  Sweep workers and benchmarks turn on ``fast.on()``: a minibatch step on 64-unit
+networks is mostly torch's per-call overhead, so there the batch is normalised once per
+update, the gradients of the usual loss (no entropy term, no value clipping, no proximal term)
+are taken by hand (:func:`dc_lesson.nn.backprop.ppo_grads`), the clip and the fused AdamW step
+call their kernels directly, and rollouts take a NumPy forward.  The gradients are autograd's
+to the bit; the fused optimiser and the NumPy forward agree with the plain ones to float32
+rounding (the module's docstring lists which piece is which).
 """
 
 from __future__ import annotations
@@ -398,15 +401,18 @@ def explained_variance(predictions: torch.Tensor, targets: torch.Tensor) -> floa
     return float("nan") if var == 0 else float(1 - (targets - predictions).var() / var)
 
 
-def _loss_backward(policy, value_fn, optimizer, zp, zv, act, olp, ov, adv, tg,
-                   config: PPOConfig, fast_path: bool, generator, extra_loss) -> dict:
-    """One minibatch's loss and ``backward()`` through autograd; returns the logged terms."""
-    gaussian = getattr(policy, "log_std", None) is not None
-    if fast_path:
+def minibatch_loss(policy, value_fn, zp, zv, act, olp, ov, adv, tg, config: PPOConfig,
+                   normalised: bool = False, generator=None, extra_loss=None) -> dict:
+    """One minibatch's loss, ``clipped surrogate - ent_coef * entropy + vf_coef * value
+    loss (+ extra_loss())``, under ``"loss"``, with the terms ``ppo_update`` logs.
+
+    ``zp`` and ``zv`` are observations, or with ``normalised`` (the fast path's batch,
+    normalised once per update) each network's normalised inputs."""
+    if normalised:       # the Gaussian's terms without a Normal: the same bits
         new_logp, entropy = policy.log_prob_entropy(zp, act)
         entropy = entropy.mean()
         new_values = value_fn.value_of(zv)
-    elif gaussian:    # the reference path (fast.disabled()): a validated Normal
+    elif getattr(policy, "log_std", None) is not None:
         dist = policy.distribution(zp)
         new_logp = dist.log_prob(act).sum(-1)
         entropy = dist.entropy().sum(-1).mean()
@@ -424,9 +430,7 @@ def _loss_backward(policy, value_fn, optimizer, zp, zv, act, olp, ov, adv, tg,
         loss = pg_loss + config.vf_coef * v_loss
     if extra_loss is not None:
         loss = loss + extra_loss()
-    _fast.zero_grad(optimizer)
-    loss.backward()
-    return {"policy_loss": pg_loss, "value_loss": v_loss, "entropy": entropy,
+    return {"loss": loss, "policy_loss": pg_loss, "value_loss": v_loss, "entropy": entropy,
             "approx_kl": approx_kl, "clip_fraction": clip_fraction}
 
 
@@ -438,7 +442,7 @@ def ppo_update(policy: GaussianPolicy, value_fn: ValueNetwork, optimizer: torch.
     """``n_epochs`` passes of minibatch gradient steps on one batch; returns the logged terms
     (means over the minibatches).  ``generator`` draws the minibatch order; ``extra_loss()``,
     if given, is added to every minibatch's loss (consensus ADMM's proximal term in
-    :mod:`dc_lesson.dc`)."""
+    :mod:`dc_lesson.algorithms.dc`)."""
     if batch.advantages is None or batch.returns is None:
         raise ValueError("set batch.advantages and batch.returns (from compute_gae) first")
     # From here on time and environment do not matter: every step is one sample.
@@ -448,8 +452,9 @@ def ppo_update(policy: GaussianPolicy, value_fn: ValueNetwork, optimizer: torch.
     advantages, targets = batch.advantages.reshape(-1), batch.returns.reshape(-1)
     n = len(obs)
     size = n // config.n_minibatches
-    fast_path = getattr(policy, "log_std", None) is not None and _fast.enabled()
-    if fast_path:
+    fast = _fast.enabled()        # the same numbers by faster kernels (dc_lesson.nn.fast)
+    normalised = fast and getattr(policy, "log_std", None) is not None
+    if normalised:
         # The normalisers are frozen during an update, so each network's inputs are the same
         # numbers in every epoch: normalise the batch once (elementwise, so minibatch by
         # minibatch would give the same bits), not once per minibatch step.
@@ -457,9 +462,9 @@ def ppo_update(policy: GaussianPolicy, value_fn: ValueNetwork, optimizer: torch.
             z_pi, z_v = policy.normalise(obs), value_fn.normalise(obs)
     else:
         z_pi = z_v = obs
-    # On the fast path the common case (no entropy term, no value clipping, no proximal term,
-    # tanh MLPs) is differentiated by hand (dc_lesson.nn.backprop): the same gradients.
-    by_hand = (fast_path and extra_loss is None and not config.ent_coef
+    # The common case (no entropy term, no value clipping, no proximal term, tanh MLPs)
+    # differentiated by hand on the fast path (dc_lesson.nn.backprop): the same gradients.
+    by_hand = (normalised and extra_loss is None and not config.ent_coef
                and not config.clip_vloss and _backprop.supported(policy.mean_net)
                and _backprop.supported(value_fn.net))
     pi_params, v_params = list(policy.parameters()), list(value_fn.parameters())
@@ -479,18 +484,25 @@ def ppo_update(policy: GaussianPolicy, value_fn: ValueNetwork, optimizer: torch.
             zp, zv, act, olp, ov, adv, tg = (x[start:start + size] for x in shuffled)
             if config.norm_adv:
                 adv = (adv - adv.mean()) / (adv.std() + 1e-8)
-            if by_hand:   # the same loss and gradients, differentiated without autograd
+            if by_hand:
                 _fast.zero_grad(optimizer)
                 now = _backprop.ppo_grads(policy, value_fn, zp, zv, act, olp, adv, tg,
                                           config.clip_coef, config.vf_coef)
             else:
-                now = _loss_backward(policy, value_fn, optimizer, zp, zv, act, olp, ov, adv, tg,
-                                     config, fast_path, generator, extra_loss)
+                now = minibatch_loss(policy, value_fn, zp, zv, act, olp, ov, adv, tg, config,
+                                     normalised, generator, extra_loss)
+                optimizer.zero_grad()
+                now.pop("loss").backward()
             # Clip each network on its own: the value loss, with targets up to 1 / (1 - gamma),
             # would otherwise take the whole norm and shrink the policy's step.
-            gn_pi = _fast.clip_grad_norm_(pi_params, config.max_grad_norm)
-            gn_v = _fast.clip_grad_norm_(v_params, config.max_grad_norm)
-            _fast.optimizer_step(optimizer)
+            if fast:     # torch's kernels without their wrappers: the same bits
+                gn_pi = _fast.clip_grad_norm_(pi_params, config.max_grad_norm)
+                gn_v = _fast.clip_grad_norm_(v_params, config.max_grad_norm)
+                _fast.optimizer_step(optimizer)
+            else:
+                gn_pi = torch.nn.utils.clip_grad_norm_(pi_params, config.max_grad_norm)
+                gn_v = torch.nn.utils.clip_grad_norm_(v_params, config.max_grad_norm)
+                optimizer.step()
 
             for k, v in (*now.items(), ("grad_norm_policy", gn_pi), ("grad_norm_value", gn_v)):
                 terms[k].append(float(v.detach()))
@@ -638,5 +650,5 @@ def train(task: str, demos=None, config: PPOConfig = PPOConfig(), *,
 
 
 __all__ = ["Batch", "EnvBatch", "PPOConfig", "preset", "SeedStream", "TERMINATIONS", "check_checkpoint", "clipped_surrogate", "collect_batch",
-           "compute_gae", "explained_variance", "load_checkpoint", "ppo_update",
+           "compute_gae", "explained_variance", "load_checkpoint", "minibatch_loss", "ppo_update",
            "save_checkpoint", "train", "value_loss"]

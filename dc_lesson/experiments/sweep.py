@@ -282,13 +282,16 @@ def format_ledger(rows: list[dict], b: _budget.Budget, workers: int) -> str:
 # -- running -------------------------------------------------------------------------------------
 
 def execute(cell: _cells.Cell, needs) -> dict:
-    """Runs one cell in this process (what a Ray task does), on one torch thread."""
+    """Runs one cell in this process (what a Ray task does), on one torch thread, on the
+    fast path (``dc_lesson.nn.fast``: every stored cell was computed on it)."""
     import torch
 
     from dc_lesson.experiments import studies
+    from dc_lesson.nn import fast
     torch.set_num_threads(1)
     t0 = time.perf_counter()
-    result, features = studies.get(cell.study).run_cell(cell, needs)
+    with fast.on():
+        result, features = studies.get(cell.study).run_cell(cell, needs)
     return {"result": result, "features": features, "wall_seconds": time.perf_counter() - t0,
             "threads": torch.get_num_threads(), "host": socket.gethostname(),
             "platform": storage.platform_info()}

@@ -1,18 +1,58 @@
-"""The networks' forward pass in NumPy, for rollouts: the same function without torch's
-per-call overhead.
+"""Speed, behind one switch: kernels that compute what the readable code computes, faster.
 
-A rollout calls the policy once per control step on a small batch (8 to 16 environments):
-for a 64-64 MLP the arithmetic takes microseconds and torch's dispatch, autograd bookkeeping
-and distribution objects take the rest (about 0.4 ms a call, measured in issue 14's profile).
+**Two paths.**  Off (the default, *the reader's path*), ``train`` runs what its module shows:
+the loss functions (``ppo.clipped_surrogate``, ``ppo.value_loss``, ``bc.bc_loss``, ...)
+differentiated by autograd, ``torch.optim.AdamW`` / ``Adam`` stepped by ``optimizer.step()``,
+``torch.nn.utils.clip_grad_norm_``, and rollouts through the torch modules
+(``GaussianPolicy.forward`` and ``sample``).  Edit a loss and training changes
+(``tests/test_fast.py::test_editing_a_readable_loss_changes_training``).  On (:func:`on`),
+the same computations take these kernels:
+
+* PPO's and BC's gradients by hand (:mod:`dc_lesson.nn.backprop`): the same bits
+  (``tests/test_backprop.py``: ``test_ppo_gradients_are_autograds_to_the_bit``,
+  ``test_bc_gradients_are_autograds_to_the_bit``, ``test_ppo_update_by_hand_ends_where_
+  autograd_ends``, ``test_bc_step_by_hand_ends_where_autograd_ends``);
+* PPO's batch normalised once per update, the Gaussian's terms without a ``Normal`` per
+  minibatch: the same bits (``tests/test_ppo.py::test_the_fast_ppo_update_equals_the_
+  reference_path_bit_for_bit``, ``test_log_prob_entropy_equals_torch_normal_bit_for_bit...``);
+* the lean optimiser step, ``zero_grad`` and gradient clip (:func:`optimizer_step`,
+  :func:`zero_grad`, :func:`clip_grad_norm_`): the same bits as ``optimizer.step()`` and
+  ``torch.nn.utils.clip_grad_norm_`` on the same optimiser
+  (``tests/test_fast.py::test_the_lean_optimiser_step_is_torchs_to_the_bit``);
+* fused AdamW and Adam (:func:`adamw`, :func:`adam`): *not* the same bits, the same update
+  computed in another order; a step's weights agree to a few float32 ulps
+  (``tests/test_fast.py::test_the_fused_optimiser_is_the_plain_one_to_float32_rounding``);
+* the NumPy forward of rollouts (:class:`NumpyForward`, :class:`GaussianSampler`): *not* the
+  same bits; each output within a few float32 ulps of the size of the layers' terms
+  (``tests/test_fast.py``: ``test_numpy_forward_equals_the_modules_to_float32_rounding``,
+  ``test_one_step_from_the_same_state_agrees_on_either_path``);
+* NumPy's tanh in a flow (``density._trace``, DC's ``flow_tanh="numpy"``): *not* the same
+  bits, within one ulp (``tests/test_softflow.py::test_the_flows_tanh_is_numpys_to_one_ulp...``).
+
+A learner turns a last-bit difference into another trajectory, so a run on the reader's path
+is another sample of the same experiment, not the fast path's numbers.
+
+**Who runs which.**  Every stored cell was computed on the fast path, so the sweep worker
+(``experiments.sweep.execute``, which ``--recheck`` also runs) turns it on around each cell,
+and so do the benchmarks (``dc_lesson.perf``: each ``main``; ``perf learners`` times both
+paths).  The book's chapters, the tests, the README's library example and anyone calling
+``train`` directly take the reader's path; they are meant to, and their numbers are the
+reader's own, not the stored cells'.  Rollouts keep the torch modules on the reader's path
+too (the NumPy forward is not bit-identical, so an edited ``forward`` must show), at about
+0.4 ms more per control step.
+
+**How the NumPy forward works.**  A rollout calls the policy once per control step on a small
+batch (8 to 16 environments): for a 64-64 MLP the arithmetic takes microseconds and torch's
+dispatch, autograd bookkeeping and distribution objects take the rest (issue 14's profile).
 :class:`NumpyForward` snapshots a network's weights (and its frozen observation normaliser)
 into NumPy arrays once per batch of steps and evaluates them with three matrix products.
-Training never uses it: gradients still come from the torch modules.
+Sampling stays torch's: the noise of a stochastic action is ``torch.randn`` drawn from the
+same ``torch.Generator`` in the same shape as :meth:`GaussianPolicy.sample` draws it, so a
+seeded run draws the same noise on either path.
 
-Sampling stays torch's: the noise of a stochastic action is ``torch.randn`` drawn from the same
-``torch.Generator`` in the same shape as :meth:`GaussianPolicy.sample` draws it, so a seeded
-run draws the same noise on either path and its actions agree to float32 rounding
-(``tests/test_fast.py``).  :func:`disabled` switches every rollout back to the torch modules,
-for ``dc-lesson perf learners``, which times both paths in one run.
+:func:`disabled` is the reader's path with the task engine stepping each copy on its own as
+well (``tasks.vec.per_copy``): the code as it was before issue 14, which ``perf learners``
+times against the fast path.
 """
 
 from __future__ import annotations
@@ -27,7 +67,7 @@ from torch.autograd.graph import increment_version
 
 from dc_lesson.tasks import vec as _vec
 
-_ENABLED = True
+_ENABLED = False     # the reader's path unless on() says otherwise
 _ONE = torch.tensor(1.0)
 
 _ACTIVATIONS = {
@@ -39,18 +79,26 @@ _ACTIVATIONS = {
 
 
 def enabled() -> bool:
-    """Whether the fast paths are on (the default): rollouts through the NumPy forward pass,
-    fused optimisers and their lean step, PPO's update on a batch normalised once
-    (``ppo.ppo_update``), and PPO's and BC's gradients by hand (:mod:`dc_lesson.nn.backprop`)."""
+    """Whether the fast path is on (see the module's table; off by default)."""
     return _ENABLED
 
 
 @contextlib.contextmanager
+def on():
+    """Within the block, the fast path: what sweep workers and benchmarks run.  An optimiser
+    is fused or not as it is built, so build it (call ``train``) inside the block."""
+    global _ENABLED
+    old, _ENABLED = _ENABLED, True
+    try:
+        yield
+    finally:
+        _ENABLED = old
+
+
+@contextlib.contextmanager
 def disabled():
-    """Within the block, rollouts call the torch modules, new VecEnvs step their copies one by
-    one, new optimisers are not fused, and PPO's update builds a validated Normal on each
-    minibatch (the reference path the benchmarks and tests compare with; close to, not
-    exactly, the code before issue 14)."""
+    """Within the block, the reader's path, and new VecEnvs step their copies one by one (the
+    code before issue 14, close to it but not exactly: ``perf learners``' "old" column)."""
     global _ENABLED
     old, _ENABLED = _ENABLED, False
     try:
@@ -256,4 +304,4 @@ def snapshot(net: torch.nn.Module, kind=NumpyForward):
 
 
 __all__ = ["GaussianSampler", "NumpyForward", "adam", "adamw", "clip_grad_norm_", "disabled",
-           "enabled", "optimizer_step", "snapshot", "zero_grad"]
+           "enabled", "on", "optimizer_step", "snapshot", "zero_grad"]

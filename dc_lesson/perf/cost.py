@@ -30,6 +30,7 @@ import torch
 
 from dc_lesson import algorithms, budget, data
 from dc_lesson.algorithms import bc
+from dc_lesson.nn import fast
 from dc_lesson.storage import write_result
 
 LEARNERS = ("gail", "dc", "dril", "pwil", "ndi", "gpril")
@@ -48,6 +49,7 @@ def _config(name: str, b, steps: int):
         return cfg.with_steps((getattr(cfg, "value_warmup", 0) + 1) * cfg.ppo.batch_size)
 
 
+@fast.on()   # as sweep workers run the learners (dc_lesson.nn.fast)
 def learner_costs(task: str = "reacher4", names=LEARNERS, steps: int = 20_000,
                   budget_name: str = "lesson", warm_start_epochs: int | None = None) -> dict:
     """The costs of the module docstring, one row per learner."""

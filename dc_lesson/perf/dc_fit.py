@@ -33,6 +33,7 @@ import torch
 from dc_lesson import algorithms, budget as _budget, data
 from dc_lesson.algorithms import dc as _dc
 from dc_lesson.evaluation import evaluate, stats
+from dc_lesson.nn import fast
 from dc_lesson.storage import check_writable, write_result
 
 # The variants, as changes to the stored numerics (dc.STORED_NUMERICS, torch's tanh);
@@ -59,6 +60,7 @@ def _run(task, demos, config, start, n_episodes: int) -> dict:
     return {"seconds": seconds, "scaled_return": float(ev["scaled_return"])}
 
 
+@fast.on()   # as the stored runs (dc_lesson.nn.fast)
 def run(task: str = "reacher4", seeds=range(5), b: _budget.Budget | None = None,
         n_episodes: int = 20, log=print, variant: str = "fit") -> dict:
     """Today's settings and the ``variant``'s on every seed:

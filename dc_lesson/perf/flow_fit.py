@@ -41,6 +41,7 @@ import torch
 from dc_lesson import budget as _budget, data
 from dc_lesson.algorithms import dc as _dc
 from dc_lesson.density import softflow as _sf
+from dc_lesson.nn import fast
 from dc_lesson.storage import check_writable, write_result
 
 TOLERANCE = 0.1   # nats of held-out NLL (reference solver) a cheaper fit may lose
@@ -113,6 +114,7 @@ def _config(b: _budget.Budget, changes: dict, seed: int) -> _sf.SoftFlowConfig:
     return dataclasses.replace(base, **changes, seed=seed)
 
 
+@fast.on()   # as DC's fits in stored cells (dc_lesson.nn.fast)
 def run(task: str = "reacher4", seeds=(0, 1), b: _budget.Budget | None = None,
         n_test: int = 1000) -> dict:
     """Every variant on every seed: ``{"rows": [...], "summary": [...]}``."""

@@ -28,6 +28,7 @@ import torch
 from dc_lesson import data
 from dc_lesson.algorithms import bc
 from dc_lesson.evaluation import evaluate_policy
+from dc_lesson.nn import fast
 from dc_lesson.nn.policies import GaussianPolicy
 from dc_lesson.storage import check_writable, write_result
 
@@ -74,6 +75,7 @@ def imitation_bc(demos, seed: int, n_batches: int = N_BATCHES) -> GaussianPolicy
     return policy
 
 
+@fast.on()   # ours as sweep workers train it (dc_lesson.nn.fast)
 def compare(task: str, seeds, n_demos: int = 18, n_episodes: int = 50,
             n_batches: int = N_BATCHES) -> dict:
     """Per seed: imitation's BC and ours (``bc-lib``'s recipe), scored alike."""

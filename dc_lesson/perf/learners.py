@@ -3,7 +3,8 @@
 Each learner (BC, PPO, GAIL, DC) runs a fixed, small amount of work on each task (a few
 iterations at the lesson budget's batch sizes), twice per repeat: on the path before issue 14
 (``dc_lesson.nn.fast.disabled()``: the torch modules in every rollout step, validated
-distributions, the environment copies stepped one by one) and on today's path, alternating which goes first.  Every run records its
+distributions, the environment copies stepped one by one) and on the fast path sweep workers
+run (``fast.on()``), alternating which goes first.  Every run records its
 phases (:mod:`dc_lesson.timing`: ``policy`` and ``env`` in rollouts, ``value``, ``gae``,
 ``ppo_update``, ``bc_step``, ``disc_step``, ``flow_fit``, ``log_p``, ``refit_rollout``) and
 the table gives the median seconds of each phase on both paths, environment steps per second
@@ -13,7 +14,6 @@ paths, so the ratio is the speed-up; absolute times drift with the machine's loa
 
 from __future__ import annotations
 
-import contextlib
 import dataclasses
 import platform
 import time
@@ -57,7 +57,7 @@ def run_once(name: str, task: str, demos, start, b: _budget.Budget, old: bool) -
     config = _config(name, b, task)
     algo = algorithms.get(name)
     policy = None if name in ("bc", "ppo") else _copy(start)
-    with (fast.disabled() if old else contextlib.nullcontext()), timing.recording() as phases:
+    with (fast.disabled() if old else fast.on()), timing.recording() as phases:
         t0 = time.perf_counter()
         algo.train(task, demos if algo.uses_demos else None, config, policy=policy,
                    progress=False)
@@ -71,6 +71,7 @@ def _copy(policy):
     return copy.deepcopy(policy)
 
 
+@fast.on()   # the BC start as a sweep worker makes it
 def benchmark(tasks=TASKS, learners=LEARNERS, repeats: int = 2, log=print) -> list[dict]:
     """One row per (learner, task): median seconds per phase and in all, on both paths."""
     torch.set_num_threads(1)

@@ -53,7 +53,7 @@ ISSUE_14 = "7445a95"   # the revision issue 14 was filed against
 
 # Runs in a fresh process, in either tree: only the interface both revisions share.
 _SNIPPET = r"""
-import dataclasses, json, sys, time
+import contextlib, dataclasses, json, sys, time
 import torch
 torch.set_num_threads(1)
 import dc_lesson
@@ -70,11 +70,19 @@ numerics = getattr(sys.modules[type(cfg).__module__], "STORED_NUMERICS", None)
 if stored and numerics:   # code without the settings runs its only DC
     cfg = dataclasses.replace(cfg, **numerics)
 demos = data.load_demos(task, n_trajectories=b.il_demos) if algo.uses_demos else None
+# today's fast path, as sweep workers run it; older code had it on by default or not at all
+try:
+    from dc_lesson.nn import fast
+    switch = getattr(fast, "on", contextlib.nullcontext)
+except ImportError:
+    switch = contextlib.nullcontext
 start = None
 if name in ("gail", "dc"):
-    start = algorithms.bc.warm_start_policy(demos, 0, max_epochs=b.bc_max_epochs)
+    with switch():
+        start = algorithms.bc.warm_start_policy(demos, 0, max_epochs=b.bc_max_epochs)
 t0 = time.perf_counter()
-algo.train(task, demos, cfg, policy=start, progress=False)
+with switch():
+    algo.train(task, demos, cfg, policy=start, progress=False)
 seconds = time.perf_counter() - t0
 print(json.dumps({"package": dc_lesson.__file__, "seconds": seconds,
                   "config": json.loads(json.dumps(dataclasses.asdict(cfg), default=str))}))

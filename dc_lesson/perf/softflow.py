@@ -5,7 +5,7 @@ and batches of ``batch`` states, a flow (64-64-64) trained briefly on synthetic 
 dynamics are not trivial:
 
 * **training steps per second** with Hutchinson's trace, ours (one Jacobian-vector product
-  carried forward through the layers, see :mod:`dc_lesson.softflow`) against the usual FFJORD
+  carried forward through the layers, see :mod:`dc_lesson.density.softflow`) against the usual FFJORD
   way (a vector-Jacobian product by ``torch.autograd.grad(..., create_graph=True)``, so the
   backward pass differentiates a backward pass), both with rk4 (step 0.25) and dopri5 (1e-5);
 * **log_prob states per second** with the exact trace: NAIVE (the reference: a Python loop of D
@@ -31,6 +31,7 @@ import torch
 from torch import nn
 
 from dc_lesson.density import softflow as sf
+from dc_lesson.nn import fast
 
 
 # -- the naive references ------------------------------------------------------------------------
@@ -150,6 +151,7 @@ LOG_PROB_VARIANTS = {
 NAIVE = "naive: autograd loop, dopri5 1e-5"
 
 
+@fast.on()   # a benchmark times the fast path (dc_lesson.nn.fast)
 def softflow_benchmark(dim: int = 17, batch: int = 2048, hidden=(64, 64, 64),
                        pretrain_iterations: int = 400, repeats: int = 3, train_steps: int = 3,
                        threads: int = 1, seed: int = 0, progress: bool = False) -> dict:
