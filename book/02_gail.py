@@ -30,7 +30,7 @@
 #
 # 1. derives GAIL's objective and reward, with the sign convention spelled out;
 # 2. says why the adversarial game is unstable, and why nothing in it asks for every mode;
-# 3. puts the pseudo-code beside the library's code (`dc_lesson.gail`), and trains GAIL live;
+# 3. puts the pseudo-code beside the library's code (`dc_lesson.algorithms.gail`), and trains GAIL live;
 # 4. reads the stored cells: BC (GAIL's warm start) and GAIL on the hidden-coin `reacher4`,
 #    `reacher2` and `halfcheetah2` (10, 10 and 5 seeds), with the mode-coverage plots (the
 #    paper's Figures 1, 7 and 10), the Table I measures and the learning curves;
@@ -639,7 +639,7 @@ else:
 # * The reward moves as the policy moves, a winning discriminator's reward is flat, and no
 #   single step is paid for covering every mode: three reasons the game is unstable and can
 #   collapse.
-# * `dc_lesson.gail` builds GAIL from the library's PPO pieces, from a BC warm start, with the
+# * `dc_lesson.algorithms.gail` builds GAIL from the library's PPO pieces, from a BC warm start, with the
 #   observation normaliser frozen at the expert's statistics; one seed gives the same run,
 #   and a resumed run equals an uninterrupted one (`tests/test_gail.py`).
 # * On the hidden-coin experts, what GAIL does to its BC start's modes, its coverage and its

@@ -25,7 +25,7 @@
 # 1. the DC objective (Eq. 2 and 3) and its two challenges;
 # 2. the policy split and the "ADMM" update (Eq. 4), what it really is (parameter averaging),
 #    and what real consensus ADMM would add;
-# 3. Algorithms 1 and 2 as pseudo-code beside `dc_lesson.dc`;
+# 3. Algorithms 1 and 2 as pseudo-code beside `dc_lesson.algorithms.dc`;
 # 4. every choice the paper leaves open, and ours;
 # 5. DC live on `reacher4`;
 # 6. the stored cells: BC, GAIL and DC on the hidden-coin `reacher4`, `reacher2` and
@@ -152,7 +152,7 @@ CHAPTER_START = time.perf_counter()
 # %% [markdown]
 # ## What the paper leaves open, and what we chose
 #
-# Every row is a field of `dc.DCConfig`; the module docstring of `dc_lesson.dc` gives the
+# Every row is a field of `dc.DCConfig`; the module docstring of `dc_lesson.algorithms.dc` gives the
 # reasons at length.
 
 # %%
@@ -752,7 +752,7 @@ for v in ablations.verdicts():
 # %% [markdown]
 # ## The paper's claims, one by one
 #
-# Each verdict below is computed by `dc_lesson.claims` from the stored files, by the rule in
+# Each verdict below is computed by `dc_lesson.experiments.claims` from the stored files, by the rule in
 # its row; `tests/test_claims_rules.py` checks each rule on constructed records.
 
 # %%

@@ -5,7 +5,7 @@ pairs under the learner, with the joint density split as P(s, a; pi) = P(s) pi(a
 
     max_{pi, P}  E_{(s,a) in D_E u D_pi} [ log P(s) + log pi(a | s) ].                   (Eq. 3)
 
-P is a SoftFlow P_w fitted to states (:mod:`dc_lesson.softflow`); pi a Gaussian policy.  The
+P is a SoftFlow P_w fitted to states (:mod:`dc_lesson.density.softflow`); pi a Gaussian policy.  The
 log pi term is BC's (Eq. 1), differentiable in pi.  The log P(s) term depends on pi only through
 *which states pi visits*: no gradient flows through sampling, so it is an RL problem with reward
 log P_w(s).  The paper splits the two with a copy pi' of the policy:

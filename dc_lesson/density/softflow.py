@@ -720,7 +720,7 @@ def save_flow(flow: SoftFlow, path, meta: dict | None = None) -> pathlib.Path:
 def load_flow(path, fix: str | None = None) -> SoftFlow:
     """Rebuilds a saved flow (eval mode), loaded with ``weights_only=True``; its metadata is in
     ``flow.meta``.  A missing, damaged or foreign file raises ``FileNotFoundError`` or
-    :class:`~dc_lesson.policies.PolicyFileError` naming the file."""
+    :class:`~dc_lesson.nn.checkpoint.PolicyFileError` naming the file."""
     obj = load_checked(path, FLOW_FORMAT, FLOW_VERSION, "SoftFlow", fix)
     try:
         flow = SoftFlow(**json.loads(obj["args"]))

@@ -2,7 +2,7 @@
 
 ``dc-lesson tour`` ends with :func:`run`: the paper's Figure 1 and Table I in miniature.  One
 seed of the imitation protocol (``budget.il_*``): BC on the first ``il_demos`` demonstrations
-(:func:`dc_lesson.bc.warm_start`), GAIL and DC from that same start for ``il_steps``
+(:func:`dc_lesson.algorithms.bc.warm_start`), GAIL and DC from that same start for ``il_steps``
 environment interactions each (the settings of Table I's ``gail`` and ``dc`` rows), each policy run
 for ``il_eval_episodes`` fresh episodes and measured against all the demonstrations
 (:func:`dc_lesson.evaluation.evaluate_policy`).  It saves the mode-coverage figure (where each

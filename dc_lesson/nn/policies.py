@@ -6,7 +6,7 @@
 * :class:`RunningNorm`: an optional observation normaliser kept *inside* a network as buffers,
   so a saved ``state_dict`` carries it and a loaded policy needs nothing else;
 * :class:`StochasticPolicy`: a numpy batch policy that samples from a :class:`GaussianPolicy`
-  with its own seeded generator, for stochastic rollouts with :func:`dc_lesson.rollout.collect`
+  with its own seeded generator, for stochastic rollouts with :func:`dc_lesson.data.rollout.collect`
   (passing the policy itself gives the deterministic mean);
 * :func:`save_policy` / :func:`load_policy`: a small, atomically written file with the weights,
   the constructor arguments and JSON metadata, loaded with ``torch.load(weights_only=True)``.

@@ -5,7 +5,7 @@ For each task it times, on one core and with uniformly random actions:
 * **raw**: ``mujoco.mj_step`` on the task's own model, ``n_sub_steps`` physics steps per control
   step and nothing else: the ceiling any Python rollout path can reach;
 * **dm_control**: ``dm_control.rl.control.Environment.step`` (TimeStep and observation dict);
-* **rollout**: :func:`dc_lesson.rollout.collect`, the path every algorithm in the library uses
+* **rollout**: :func:`dc_lesson.data.rollout.collect`, the path every algorithm in the library uses
   (observation, reward, mode feature, validated Trajectory records);
 * **EnvPool**, where it is installed (an optional extra, ``pip install envpool==1.2.5``, never
   required): the C++ batched environments of the same suite task or Gym model (``ENVPOOL``), as

@@ -211,7 +211,7 @@ def drift_plot(distances_by_name, band: str = "std", logy: bool = False,
     with ``logy``, as distances are skewed and a std band dips below zero).
 
     ``distances_by_name`` maps a name to the (n_episodes, T + 1) array of
-    :func:`dc_lesson.metrics.distance_to_expert` (a bare array is drawn as "learner").  Held-out
+    :func:`dc_lesson.evaluation.metrics.distance_to_expert` (a bare array is drawn as "learner").  Held-out
     expert episodes, drawn in black as "expert", give the floor a perfect imitator would
     follow.
     """
