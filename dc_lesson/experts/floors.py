@@ -9,7 +9,7 @@ How each floor is judged:
 
 * the expert's mean return over its 50 evaluation episodes (``expert_return`` in the
   manifest; for a planner expert, its 25 demonstrations and 25 further episodes, see
-  :mod:`dc_lesson.demos`) must reach the floor;
+  :mod:`dc_lesson.experts.demos`) must reach the floor;
 * multi-mode tasks (``reacher2``, ``reacher4``, ``halfcheetah2``): also every mode, judged on
   the demonstrations that took it (mean return of those episodes), since "each target
   reached and held" and "300 in each direction" are per-mode promises.  The manifest's

@@ -39,7 +39,7 @@ do not interact, so an episode's actions depend on its seed alone, not on the nu
 threads or on which episodes run beside it.
 
 A planner is a batch policy that reads the physics state, not only the observation:
-:func:`dc_lesson.rollout.collect` hands it the running environments through ``attach(venv)``.
+:func:`dc_lesson.data.rollout.collect` hands it the running environments through ``attach(venv)``.
 It acts as the expert only while attached; a learner imitates its observations and actions.
 """
 
@@ -192,7 +192,7 @@ PLANNING_REWARDS["humanoid-shaped"] = _humanoid_shaped
 
 
 class PredictiveSampling:
-    """Predictive sampling as a batch policy for :func:`dc_lesson.rollout.collect`."""
+    """Predictive sampling as a batch policy for :func:`dc_lesson.data.rollout.collect`."""
 
     kind = "planner"
 

@@ -1,8 +1,8 @@
 """Scripted experts: hand-designed controllers for ``cartpole`` and the reachers (no learning).
 
-They follow the batch-policy protocol of :mod:`dc_lesson.rollout`: called with observations of
+They follow the batch-policy protocol of :mod:`dc_lesson.data.rollout`: called with observations of
 shape (B, obs_dim), they return actions of shape (B, act_dim) in [-1, 1], and a policy with a
-per-episode choice defines ``reset(seeds)``, which :func:`~dc_lesson.rollout.collect` calls
+per-episode choice defines ``reset(seeds)``, which :func:`~dc_lesson.data.rollout.collect` calls
 with the batch's episode seeds before the first step.
 
 :class:`CartpoleLQR`
