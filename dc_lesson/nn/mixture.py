@@ -31,7 +31,6 @@ from __future__ import annotations
 import math
 from typing import Sequence
 
-import numpy as np
 import torch
 from torch import nn
 
@@ -120,20 +119,6 @@ class MixturePolicy(_Normalised):
         return -self.log_prob(obs, a)
 
 
-class MixtureSampler:
-    """A numpy batch policy that samples from a :class:`MixturePolicy` (clipped), seeded, as
-    :class:`~dc_lesson.nn.policies.StochasticPolicy` does for the Gaussian."""
-
-    def __init__(self, policy: MixturePolicy, seed: int = 0):
-        self.policy = policy
-        self.generator = torch.Generator().manual_seed(int(seed))
-
-    def __call__(self, obs: np.ndarray) -> np.ndarray:
-        with torch.no_grad():
-            return self.policy.act(torch.as_tensor(obs, dtype=torch.float32),
-                                   deterministic=False, generator=self.generator).numpy()
-
-
 _policies._CLASSES["MixturePolicy"] = MixturePolicy   # save_policy / load_policy know it
 
-__all__ = ["LOG_STD_MAX", "LOG_STD_MIN", "MixturePolicy", "MixtureSampler"]
+__all__ = ["LOG_STD_MAX", "LOG_STD_MIN", "MixturePolicy"]

@@ -28,7 +28,7 @@ def episode_frames(task: str, policy: Policy, seed: int = 0, n_steps: int = 100,
                    camera=None) -> list[np.ndarray]:
     """Runs one episode of ``policy`` for ``n_steps`` and renders every ``every``-th step.
 
-    A policy that plans on the simulator (``attach``, see :func:`dc_lesson.rollout.collect`)
+    A policy that plans on the simulator (``attach``, see :func:`dc_lesson.data.rollout.collect`)
     is attached to this episode's environment first."""
     check_policy(task, policy)   # a policy of another task: a clear error, not a shape error
     env = _tasks.make(task)
@@ -84,8 +84,3 @@ def video(frames: list[np.ndarray], fps: float = 20):
     from IPython.display import HTML
     data = base64.b64encode(gif_bytes(frames, fps)).decode()
     return HTML(f'<img src="data:image/gif;base64,{data}"/>')
-
-
-def save_gif(frames: list[np.ndarray], path, fps: float = 20) -> None:
-    with open(path, "wb") as f:
-        f.write(gif_bytes(frames, fps))
