@@ -75,6 +75,8 @@ def test_a_mixture_saves_and_loads(tmp_path):
     path = policies.save_policy(pi, tmp_path / "mix.pt", meta={"task": "toy"})
     back = policies.load_policy(path)
     assert isinstance(back, mixture.MixturePolicy)
+    # the one question the learners ask of a policy before touching its log_std
+    assert not back.gaussian and policies.GaussianPolicy(4, 2).gaussian
     obs = torch.randn(5, 4)
     torch.testing.assert_close(back.log_prob(obs, torch.zeros(5, 2)),
                                pi.log_prob(obs, torch.zeros(5, 2)))

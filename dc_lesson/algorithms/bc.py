@@ -202,7 +202,7 @@ def bc_loss(policy: GaussianPolicy, obs, act) -> dict[str, torch.Tensor]:
     """
     obs = torch.as_tensor(obs, dtype=torch.float32)
     act = torch.as_tensor(act, dtype=torch.float32)
-    if getattr(policy, "log_std", None) is None:   # a mixture (nn.mixture): its own density
+    if not policy.gaussian:   # a mixture (nn.mixture): its own density
         return {"nll": -policy.log_prob(obs, act).mean(),
                 "mse": ((policy(obs).detach() - act) ** 2).mean(),
                 "log_std": torch.tensor(math.nan)}
@@ -240,8 +240,7 @@ def _fast_step(policy, optimizer, params, obs, act, bound, extra_loss) -> dict[s
     (:func:`dc_lesson.nn.backprop.bc_grads`, autograd's to the bit), the clip and the
     optimiser step as their bare kernel calls (torch's to the bit)."""
     _fast.zero_grad(optimizer)
-    if (extra_loss is None and getattr(policy, "log_std", None) is not None
-            and _backprop.supported(policy.mean_net)):
+    if extra_loss is None and policy.gaussian and _backprop.supported(policy.mean_net):
         terms = _backprop.bc_grads(policy, torch.as_tensor(obs, dtype=torch.float32),
                                    torch.as_tensor(act, dtype=torch.float32))
     else:
@@ -259,8 +258,7 @@ def evaluate(policy: GaussianPolicy, obs, act, batch_size: int = 8192) -> dict[s
     n = len(obs)
     if n == 0:
         return {"nll": math.nan, "mse": math.nan,
-                "log_std": (float(policy.log_std.mean()) if getattr(policy, "log_std", None)
-                        is not None else math.nan)}
+                "log_std": float(policy.log_std.mean()) if policy.gaussian else math.nan}
     sums = {"nll": 0.0, "mse": 0.0}
     for start in range(0, n, batch_size):
         terms = bc_loss(policy, obs[start:start + batch_size], act[start:start + batch_size])
@@ -268,8 +266,7 @@ def evaluate(policy: GaussianPolicy, obs, act, batch_size: int = 8192) -> dict[s
         for k in sums:
             sums[k] += float(terms[k]) * size
     return {"nll": sums["nll"] / n, "mse": sums["mse"] / n,
-            "log_std": (float(policy.log_std.mean()) if getattr(policy, "log_std", None)
-                        is not None else math.nan)}
+            "log_std": float(policy.log_std.mean()) if policy.gaussian else math.nan}
 
 
 # -- training ------------------------------------------------------------------------------------

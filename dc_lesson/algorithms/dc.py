@@ -285,7 +285,7 @@ def preset(budget, seed: int = 0, **overrides) -> DCConfig:
 def policy_parameters(policy: GaussianPolicy, include_log_std: bool = True) -> list:
     """The parameters DC averages: the mean network's, and the log-std if asked (a mixture
     policy, whose spreads are outputs of its network, averages all its parameters)."""
-    if getattr(policy, "log_std", None) is None:
+    if not policy.gaussian:
         return list(policy.parameters())
     return list(policy.mean_net.parameters()) + ([policy.log_std] if include_log_std else [])
 
@@ -301,7 +301,7 @@ def average_into(target: GaussianPolicy, other: GaussianPolicy,
     (with ``average_log_std``) the log-std; without it, target takes other's log-std."""
     for p, q in zip(policy_parameters(target, False), policy_parameters(other, False)):
         p.add_(q).mul_(0.5)
-    if getattr(target, "log_std", None) is None:
+    if not target.gaussian:
         return     # a mixture: its spreads are network outputs, averaged with the rest
     if average_log_std:
         target.log_std.add_(other.log_std).mul_(0.5)
@@ -473,8 +473,7 @@ def admm_iteration(learner: Learner, batch, rewards: torch.Tensor, expert_obs: t
                                          * torch.sqrt(((z_new - before) ** 2).sum()))
     after = flat(policy_parameters(L.pi))
     out["param_change_l1"] = float((after - before).abs().sum())
-    out["log_std"] = (float(L.pi.log_std.detach().mean())
-                      if getattr(L.pi, "log_std", None) is not None else math.nan)
+    out["log_std"] = float(L.pi.log_std.detach().mean()) if L.pi.gaussian else math.nan
     return out
 
 

@@ -406,7 +406,7 @@ def train(task: str, demos, config: GAILConfig = GAILConfig(), *,
         value_fn = ValueNetwork(spec.obs_dim, pcfg.hidden, norm_obs=policy.obs_norm is not None)
         disc = Discriminator(spec.obs_dim, spec.act_dim, config.disc_hidden,
                              config.disc_activation, use_actions=config.disc_actions)
-    gaussian = getattr(policy, "log_std", None) is not None   # a mixture has its own spreads
+    gaussian = policy.gaussian   # a mixture has its own spreads
     if given and gaussian and config.start_log_std is not None:
         with torch.no_grad():     # the start's exploration noise (a resume restores the saved)
             policy.log_std.fill_(config.start_log_std)

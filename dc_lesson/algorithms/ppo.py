@@ -412,7 +412,7 @@ def minibatch_loss(policy, value_fn, zp, zv, act, olp, ov, adv, tg, config: PPOC
         new_logp, entropy = policy.log_prob_entropy(zp, act)
         entropy = entropy.mean()
         new_values = value_fn.value_of(zv)
-    elif getattr(policy, "log_std", None) is not None:
+    elif policy.gaussian:
         dist = policy.distribution(zp)
         new_logp = dist.log_prob(act).sum(-1)
         entropy = dist.entropy().sum(-1).mean()
@@ -453,7 +453,7 @@ def ppo_update(policy: GaussianPolicy, value_fn: ValueNetwork, optimizer: torch.
     n = len(obs)
     size = n // config.n_minibatches
     fast = _fast.enabled()        # the same numbers by faster kernels (dc_lesson.nn.fast)
-    normalised = fast and getattr(policy, "log_std", None) is not None
+    normalised = fast and policy.gaussian
     if normalised:
         # The normalisers are frozen during an update, so each network's inputs are the same
         # numbers in every epoch: normalise the batch once (elementwise, so minibatch by
@@ -512,8 +512,8 @@ def ppo_update(policy: GaussianPolicy, value_fn: ValueNetwork, optimizer: torch.
     out = {k: float(np.mean(v)) for k, v in terms.items()}
     out["explained_variance"] = explained_variance(old_values, targets)
     out["epochs"] = epochs
-    out["action_std"] = (float(policy.log_std.detach().exp().mean())
-                         if getattr(policy, "log_std", None) is not None else math.nan)
+    out["action_std"] = (float(policy.log_std.detach().exp().mean()) if policy.gaussian
+                         else math.nan)
     return out
 
 

@@ -44,6 +44,8 @@ LOG_STD_MIN, LOG_STD_MAX = -5.0, 1.0
 class MixturePolicy(_Normalised):
     """pi(a | s): a mixture of ``n_components`` state-dependent diagonal Gaussians."""
 
+    gaussian = False     # its spreads are network outputs: no log_std parameter
+
     def __init__(self, obs_dim: int, act_dim: int, n_components: int = 4,
                  hidden: Sequence[int] = (64, 64), activation: str = "tanh",
                  log_std_init: float = -0.5, norm_obs: bool = False):

@@ -116,6 +116,10 @@ class _Normalised(nn.Module):
 class GaussianPolicy(_Normalised):
     """pi(a | s) = N(mean(s), diag(exp(log_std))^2), independent per action dimension."""
 
+    # One Gaussian whose spread is the parameter ``log_std``, not a network output: what the
+    # learners ask before they touch ``log_std`` (a MixturePolicy answers False).
+    gaussian = True
+
     def __init__(self, obs_dim: int, act_dim: int, hidden: Sequence[int] = (64, 64),
                  activation: str = "tanh", log_std_init: float = -0.5, norm_obs: bool = False):
         super().__init__()
