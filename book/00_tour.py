@@ -477,8 +477,9 @@ print(f"command: {runs['command']}   revision: {runs['revision'][:12]}   "
       f"against: {runs['before'][:12]}")
 print(perf_runs.in_words(runs["rows"]))
 table = pd.DataFrame(runs["rows"]).set_index(["learner", "task"])
+# BC steps no environment while it trains: its steps-per-second cells are a dash
 table[["seconds_before", "seconds_today", "ratio", "steps_per_s_before",
-       "steps_per_s_today"]].round(2)
+       "steps_per_s_today"]].round(2).astype(object).fillna("—")
 
 # %% [markdown]
 # DC's flow then changed its numerics, the one speed-up here that changes numbers: training

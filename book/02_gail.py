@@ -310,7 +310,7 @@ else:
         frame = pd.DataFrame([r for r in table_one.table(t1, actions)
                               if r["row"] in ("expert", "bc-coin", "gail-coin")])
         print(f"\n{actions} action")
-        with pd.option_context("display.max_colwidth", 70, "display.width", 250):
+        with pd.option_context("display.max_colwidth", None, "display.width", 250):
             display(frame.set_index(["task", "row"]))
 
 # %% [markdown]
@@ -606,7 +606,7 @@ else:
     for actions in ("mean", "sampled"):
         frame = pd.DataFrame([r for r in table_one.table(t1, actions) if r["row"] in keep])
         print(f"\n{actions} action")
-        with pd.option_context("display.max_colwidth", 70, "display.width", 250):
+        with pd.option_context("display.max_colwidth", None, "display.width", 250):
             display(frame.set_index(["task", "row"]))
     for actions in ("mean", "sampled"):
         v = next(v for v in claims.verdicts(actions=actions)

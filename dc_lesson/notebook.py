@@ -27,12 +27,21 @@ def start(smoke_note: str) -> _budget.Budget:
     # ipywidgets should show.)
     logging.getLogger("absl").setLevel(logging.ERROR)
     torch.set_num_threads(1)   # the machine's cores are shared; one thread also repeats exactly
+    _tables()
     b = _budget.current()
     print(f"budget: {b.name} (one of {', '.join(_budget.PRESETS)})")
     print(_wrap(CHANGE_NOTE))
     if b.is_smoke:
         print(_wrap(f"smoke budget: {smoke_note}"))
     return b
+
+
+def _tables() -> None:
+    """pandas' display for a reader: a table cell is shown whole (the default cuts it at 50
+    characters, mid-number, with an ellipsis); a wide table keeps its columns side by side."""
+    import pandas as pd
+    pd.set_option("display.max_colwidth", None)
+    pd.set_option("display.width", 250)
 
 
 def _wrap(text: str) -> str:
