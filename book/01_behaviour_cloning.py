@@ -258,7 +258,8 @@ rows = [{"task": r["task"], "demos": r["n_demos"], "seeds": r["n_seeds"],
         for r in cells_bench["summary"]]
 rows += [{"task": r["task"], "demos": "expert", "seeds": r["n_seeds"],
           "scaled return": report.fmt_entry(r, "scaled_return", 3),
-          "EMD": report.fmt_entry(r, "emd", 3), "KL": report.fmt_entry(r, "kl", 1)}
+          "EMD": report.fmt_entry(r, "emd", 3), "KL": report.fmt_entry(r, "kl", 1),
+          "epochs": "—", "train s": "—"}   # the expert is not trained here
          for r in cells_bench["expert"]]
 display(pd.DataFrame(rows).set_index(["task", "demos"]).sort_index(level=0, sort_remaining=False))
 
