@@ -106,6 +106,16 @@ CASES = [
     (["sweep", "table3", "--recheck", "0"], None, "must be at least 1"),
     (["sweep", "table3", "--recheck", "1", "--only", "task=nowhere"], None,
      "matches none of the study"),
+    # issue 42: --cpus 0 meant every core, -1 failed only after Ray started
+    (["sweep", "bc_demos", "--cpus", "0"], None, "--cpus: must be at least 1"),
+    (["sweep", "bc_demos", "--cpus", "-1"], None, "--cpus: must be at least 1"),
+    (["sweep", "all", "--dry-run", "--cpus", "0"], None, "--cpus: must be at least 1"),
+    (["train", "bc", "--task", "cartpole", "--steps", "5000"], None, "leave out --steps"),
+    (["train", "ppo", "--task", "cartpole", "--steps", "0"], None, "must be at least 1"),
+    (["train", "bc", "--task", "cartpole", "--save", "/proc/bc.pt"], None,
+     "files cannot be made in /proc"),
+    (["aggregate", "bc_demos"], "typo_data", "DC_LESSON_DATA=.*does not exist.*mkdir -p"),
+    (["sweep", "bc_demos", "--dry-run"], "typo_data", "DC_LESSON_DATA=.*does not exist"),
 ]
 
 
@@ -121,6 +131,8 @@ def test_bad_input_gets_one_line_and_status_2(argv, needs, message, capsys, tmp_
         data = bytearray((d / "hopper.pt").read_bytes())
         data[5000] ^= 0x04   # one bit
         (d / "hopper.pt").write_bytes(bytes(data))
+    elif needs == "typo_data":
+        monkeypatch.setenv("DC_LESSON_DATA", str(tmp_path / "typo"))
     elif needs is not None:
         request.getfixturevalue(needs)
     argv = [a.replace("{tmp}", str(tmp_path)) for a in argv]
@@ -128,6 +140,7 @@ def test_bad_input_gets_one_line_and_status_2(argv, needs, message, capsys, tmp_
     assert code == 2, err
     assert "Traceback" not in err
     assert re.search(message, err), err
+    assert not (tmp_path / "typo").exists(), "a mistyped data folder was made"
     last = err.strip().splitlines()[-1]
     assert last.startswith("dc-lesson") and ("error:" in last or last.startswith("dc-lesson:"))
 
@@ -191,3 +204,66 @@ def test_help_is_for_people():
         assert name in perf and summary in perf
     assert "bench" not in sub, "the one-process studies are cell studies now: dc-lesson sweep"
     assert "--restart" in sub["expert"].format_help()
+
+
+def test_help_lists_every_registered_learner():
+    from dc_lesson.algorithms import ALGORITHMS
+    assert tuple(ALGORITHMS) == cli.LEARNERS
+    sub = {a.dest: a for a in cli.build_parser()._subparsers._group_actions}["cmd"].choices
+    text = " ".join(sub["train"].format_help().split())
+    assert all(name in text for name in ALGORITHMS) and "--steps" in text
+
+
+def test_steps_sets_every_interacting_learners_interactions():
+    from dc_lesson import budget
+    from dc_lesson.algorithms import ALGORITHMS
+    from dc_lesson.cli.run import learner_config
+    for b in (budget.get("smoke"), budget.get("lesson")):
+        for name, algo in ALGORITHMS.items():
+            if name == "bc":
+                continue
+            config = learner_config(algo, b, 0, 40_960)
+            if name == "dc":   # whole iterations per loop
+                total = config.loops * config.iterations * config.batch_size
+                assert 40_960 - config.loops * config.batch_size < total <= 40_960, total
+                continue
+            total = getattr(config, "total_steps", None) or config.ppo.total_steps
+            assert total == 40_960, (b.name, name, total)
+
+
+def test_the_data_folder_set_after_import_moves_every_reader_and_writer(tmp_path, monkeypatch,
+                                                                        capsys):
+    """The issue: demos, experts and results were fixed at import, cells read per call, so
+    `aggregate` read the new folder's cells and overwrote the package's STUDY.json."""
+    from dc_lesson import storage
+    from dc_lesson.experiments import cells
+    package = storage.data_root()
+    committed = (package / "results" / "bc_demos.json").read_bytes()
+    for study in ("bc_demos", "reference"):
+        shutil.copytree(package / "results" / "cells" / study,
+                        tmp_path / "results" / "cells" / study)
+    for sub in ("demos", "experts"):
+        (tmp_path / sub).symlink_to(package / sub)
+    monkeypatch.setenv("DC_LESSON_DATA", str(tmp_path))   # what %env does in a chapter
+    for where in (store.DEMOS_DIR, trained.EXPERTS_DIR, storage.RESULTS, cells.cells_root()):
+        assert pathlib.Path(where).is_relative_to(tmp_path), where
+    assert cli.main(["aggregate", "bc_demos", "--budget", "lesson"]) == 0
+    assert str(tmp_path / "results" / "bc_demos.json") in capsys.readouterr().out
+    assert (package / "results" / "bc_demos.json").read_bytes() == committed
+    monkeypatch.delenv("DC_LESSON_DATA")
+    assert pathlib.Path(store.DEMOS_DIR) == package / "demos"
+
+
+def test_compiling_the_cheetahs_logs_no_settotalmass_warning(caplog, monkeypatch):
+    """`dc-lesson tour` began with two absl warnings (dm_control's cheetah.xml uses MuJoCo's
+    deprecated settotalmass); they are dropped where the model compiles, nothing else is."""
+    import logging
+
+    from dc_lesson import tasks
+    for name in ("halfcheetah", "halfcheetah2"):
+        monkeypatch.delitem(tasks._MODELS, name, raising=False)
+    with caplog.at_level(logging.INFO):
+        tasks.make("halfcheetah")
+        tasks.make("halfcheetah2")
+        logging.getLogger("absl").warning("another absl warning")
+    assert [r.getMessage() for r in caplog.records] == ["another absl warning"]

@@ -92,3 +92,46 @@ def test_every_default_and_preset_is_valid():
     for name in ("smoke", "lesson", "paper"):
         for algo in ALGORITHMS.values():
             algo.preset(budget.get(name), 3)
+
+
+# Issue 42: the four later learners' configs checked no types (a 0-wide layer trained a
+# constant policy, an infinite rate gave NaN costs, knn_k=True failed deep in torch).
+from dc_lesson.algorithms.dril import DRILConfig   # noqa: E402
+from dc_lesson.algorithms.gpril import GPRILConfig   # noqa: E402
+from dc_lesson.algorithms.ndi import NDIConfig   # noqa: E402
+from dc_lesson.algorithms.pwil import PWILConfig   # noqa: E402
+
+LATER = [
+    (DRILConfig, "ensemble_lr", INF, "must be finite"),
+    (DRILConfig, "ensemble_lr", NAN, "must be finite"),
+    (DRILConfig, "ensemble_epochs", True, "must be a whole number"),
+    (DRILConfig, "bc_steps", 2.5, "must be a whole number"),
+    (DRILConfig, "quantile", "0.98", "must be a number"),
+    (DRILConfig, "seed", -1, "zero or more"),
+    (PWILConfig, "alpha", INF, "must be finite"),
+    (PWILConfig, "subsampling", True, "must be a whole number"),
+    (PWILConfig, "use_actions", 1, "True or False"),
+    (PWILConfig, "beta", 0.0, "must be positive"),
+    (NDIConfig, "flow_hidden", (64, 0, 64), "positive whole numbers"),
+    (NDIConfig, "flow_lr", INF, "must be finite"),
+    (NDIConfig, "knn_k", True, "must be a whole number"),
+    (NDIConfig, "sigma_max", 0.0, "must be positive"),
+    (NDIConfig, "entropy_coef", NAN, "must be finite"),
+    (GPRILConfig, "hidden", (0,), "positive whole numbers"),
+    (GPRILConfig, "flow_hidden", (64, -1), "positive whole numbers"),
+    (GPRILConfig, "lr", INF, "must be finite"),
+    (GPRILConfig, "flow_layers", True, "must be a whole number"),
+    (GPRILConfig, "episode_steps", 0, "must be positive"),
+    (GPRILConfig, "log_std_init", NAN, "must be finite"),
+]
+
+
+@pytest.mark.parametrize("cls, field, value, message", LATER,
+                         ids=[f"{c.__name__}.{f}={v!r}" for c, f, v, _ in LATER])
+def test_the_later_learners_configs_refuse_bad_fields_naming_them(cls, field, value, message):
+    test_bad_field_is_refused_naming_it(cls, field, value, message)
+
+
+def test_the_later_learners_defaults_are_valid():
+    for cls in (DRILConfig, PWILConfig, NDIConfig, GPRILConfig):
+        cls()

@@ -67,6 +67,7 @@ import numpy as np
 import torch
 
 from dc_lesson import tasks as _tasks
+from dc_lesson.checks import check_fields
 from dc_lesson.algorithms import _reward_ppo
 from dc_lesson.algorithms import bc as _bc
 from dc_lesson.algorithms import ppo as _ppo
@@ -91,6 +92,10 @@ class DRILConfig(_reward_ppo.PPOImitationConfig):
     seed: int = 0
 
     def __post_init__(self):
+        # Types first (a bool is no count, NaN or infinity no rate), then DRIL's own ranges.
+        check_fields(self, positive=("ensemble_epochs", "ensemble_batch", "ensemble_lr",
+                                     "bc_batch", "warm_start_epochs"),
+                     non_negative=("bc_steps", "value_warmup", "seed"))
         if self.ensemble_size < 2:
             raise ValueError(f"DRILConfig.ensemble_size must be at least 2 (a covariance needs "
                              f"two members), got {self.ensemble_size}")

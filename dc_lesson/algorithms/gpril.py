@@ -80,6 +80,7 @@ from torch import nn
 
 from dc_lesson import progress as _progress
 from dc_lesson import tasks as _tasks
+from dc_lesson.checks import check_fields
 from dc_lesson.algorithms import bc as _bc
 from dc_lesson.algorithms import ppo as _ppo
 from dc_lesson.algorithms.base import TrainResult, check_inputs, load_run, save_run
@@ -112,8 +113,11 @@ class GPRILConfig:
     seed: int = 0
 
     def __post_init__(self):
-        object.__setattr__(self, "flow_hidden", tuple(int(h) for h in self.flow_hidden))
-        object.__setattr__(self, "hidden", tuple(int(h) for h in self.hidden))
+        # Types first (a 0-wide layer, a bool for a count, an infinite rate), then the ranges.
+        check_fields(self, positive=("n_envs", "n_steps", "total_steps", "episode_steps",
+                                     "buffer_steps", "flow_layers", "flow_lr", "model_batch",
+                                     "policy_batch", "lr"),
+                     non_negative=("model_steps", "policy_steps", "predecessor_weight", "seed"))
         if not 0 < self.gamma < 1:
             raise ValueError(f"GPRILConfig.gamma must be in (0, 1), got {self.gamma}")
         for name in ("n_envs", "n_steps", "buffer_steps", "flow_layers", "model_batch",

@@ -69,6 +69,7 @@ import torch
 from scipy import special
 
 from dc_lesson import tasks as _tasks
+from dc_lesson.checks import check_fields
 from dc_lesson.algorithms import _reward_ppo
 from dc_lesson.algorithms import bc as _bc
 from dc_lesson.algorithms import ppo as _ppo
@@ -98,7 +99,9 @@ class NDIConfig(_reward_ppo.PPOImitationConfig):
     seed: int = 0
 
     def __post_init__(self):
-        object.__setattr__(self, "flow_hidden", tuple(int(h) for h in self.flow_hidden))
+        # Types first (a 0-wide layer, knn_k=True, an infinite rate), then NDI's own ranges.
+        check_fields(self, positive=("flow_pairs", "flow_lr", "sigma_max", "knn_k"),
+                     non_negative=("flow_iterations", "entropy_coef", "value_warmup", "seed"))
         if self.reward not in REWARDS:
             raise ValueError(f"NDIConfig.reward must be one of {REWARDS}, got {self.reward!r}")
         if self.flow_pairs < 2 or self.flow_iterations < 0 or self.knn_k < 1:

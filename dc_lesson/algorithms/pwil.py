@@ -73,6 +73,7 @@ import numpy as np
 import torch
 
 from dc_lesson import tasks as _tasks
+from dc_lesson.checks import check_fields
 from dc_lesson.algorithms import _reward_ppo
 from dc_lesson.algorithms import bc as _bc
 from dc_lesson.algorithms import ppo as _ppo
@@ -96,6 +97,9 @@ class PWILConfig(_reward_ppo.PPOImitationConfig):
     seed: int = 0
 
     def __post_init__(self):
+        # Types first (a bool is no count, NaN or infinity no scale), then PWIL's own ranges.
+        check_fields(self, positive=("alpha", "beta", "subsampling", "std_floor"),
+                     non_negative=("value_warmup", "seed"))
         if not (self.alpha > 0 and self.beta > 0 and self.std_floor > 0):
             raise ValueError("PWILConfig.alpha, beta and std_floor must be positive, got "
                              f"{self.alpha}, {self.beta}, {self.std_floor}")

@@ -7,8 +7,9 @@
                                         (a planner expert: write its settings)
   dc-lesson expert eval --task NAME     measure the expert of NAME (--episodes N)
   dc-lesson demos --task NAME           roll out the expert of NAME into data/demos/
-  dc-lesson train LEARNER --task NAME   train one learner (bc, ppo, gail, dc) at the
-                                        budget and evaluate it; --save writes its policy
+  dc-lesson train LEARNER --task NAME   train one learner (bc, ppo, gail, dc, dril, pwil,
+                                        ndi, gpril) at the budget and evaluate it; --steps
+                                        sets its interactions, --save writes its policy
   dc-lesson perf WHAT                   speed benchmarks (dc-lesson perf -h lists them)
   dc-lesson sweep STUDY [--dry-run]     a study's cells on Ray (resumable, accumulating);
                                         STUDY all: every study (--dry-run: the ledger);
@@ -29,8 +30,8 @@ import os
 import sys
 
 from dc_lesson.cli._args import Parser, UsageError, positive_float, positive_int, seed_int
-from dc_lesson.cli.run import (PERFS, cmd_demos, cmd_expert, cmd_perf, cmd_tasks, cmd_tour,
-                               cmd_train)
+from dc_lesson.cli.run import (LEARNERS, PERFS, cmd_demos, cmd_expert, cmd_perf, cmd_tasks,
+                               cmd_tour, cmd_train)
 from dc_lesson.cli.sweeps import cmd_aggregate, cmd_seal_cells, cmd_sweep
 
 
@@ -84,12 +85,16 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--episodes", type=positive_int, default=10,
                    help="evaluation episodes (default: 10)")
     s.set_defaults(func=cmd_expert)
-    s = sub.add_parser("train", help="train one learner (bc, ppo, gail, dc) on a task")
-    s.add_argument("learner", help="bc, ppo, gail or dc")
+    s = sub.add_parser("train", help=f"train one learner ({', '.join(LEARNERS)}) on a task")
+    s.add_argument("learner", help=", ".join(LEARNERS) + " (the registry, "
+                   "dc_lesson.algorithms.ALGORITHMS)")
     s.add_argument("--task", nargs="+", required=True, help="one or more task names")
     s.add_argument("--demos", type=positive_int, default=None,
                    help="demonstrations to learn from (default: the budget's il_demos)")
     s.add_argument("--seed", type=seed_int, default=0, help="the run's seed (default: 0)")
+    s.add_argument("--steps", type=positive_int, default=None,
+                   help="environment interactions after the warm start (default: the "
+                        "budget's il_steps); not for bc, which learns from demonstrations alone")
     s.add_argument("--save", default=None,
                    help="write the policy here; {task} and {learner} are filled in")
     s.set_defaults(func=cmd_train)

@@ -9,6 +9,10 @@ import time
 
 from dc_lesson.cli._args import UsageError, check_output, command_line, refuse_unused
 
+# The registry's learners (dc_lesson.algorithms.ALGORITHMS; a test keeps the two equal), named
+# here so that the command's help does not import torch.
+LEARNERS = ("bc", "ppo", "gail", "dc", "dril", "pwil", "ndi", "gpril")
+
 PERFS = {
     "rollout": ("control steps per second of the batched task engine against raw MuJoCo",
                 {"tasks", "steps"}),
@@ -180,6 +184,7 @@ def cmd_train(args) -> int:
                                  f"filled in") from None
             check_output(path)
     b = budget.current()
+    config = learner_config(algo, b, args.seed, args.steps)
     torch.set_num_threads(1)
     demos_of = {}
     for task in args.task:   # every task's demonstrations are checked before any training
@@ -189,12 +194,11 @@ def cmd_train(args) -> int:
     for task in args.task:
         demos = demos_of.get(task)
         start = None
-        if args.learner in ("gail", "dc"):   # the paper's protocol: from BC's warm start
+        if algo.uses_demos and algo.name != "bc":   # the protocol: from BC's warm start
             start = algorithms.bc.warm_start_policy(demos, args.seed,
                                                     max_epochs=b.bc_max_epochs)
         t0 = time.time()
-        result = algo.train(task, demos, algo.preset(b, args.seed), policy=start,
-                            progress=True)
+        result = algo.train(task, demos, config, policy=start, progress=True)
         ev = evaluation.evaluate_policy(task, result.policy, n_episodes=b.il_eval_episodes)
         print(f"{task}: {algo.name} (budget {b.name}, seed {args.seed}) trained in "
               f"{time.time() - t0:.0f} s; scaled return {ev['scaled_return']:.3f}, "
@@ -205,3 +209,21 @@ def cmd_train(args) -> int:
                                                             "seed": args.seed, "budget": b.name})
             print(f"saved {path}")
     return 0
+
+
+def learner_config(algo, b, seed: int, steps: int | None):
+    """The learner's preset at budget ``b``; with ``steps``, for that many environment
+    interactions (the budget's ``il_steps``, which every interacting preset reads, replaced).
+    A learner whose preset does not read it (BC) refuses ``--steps`` rather than ignore it."""
+    import dataclasses
+
+    from dc_lesson.algorithms import ppo
+    if steps is None:
+        return algo.preset(b, seed)
+    config = algo.preset(dataclasses.replace(b, il_steps=steps), seed)
+    if isinstance(config, ppo.PPOConfig):   # PPO's smoke preset fixes its own length
+        return dataclasses.replace(config, total_steps=steps)
+    if config == algo.preset(b, seed) and steps != b.il_steps:
+        raise UsageError(f"{algo.name} takes no environment interactions (it learns from the "
+                         f"demonstrations alone): leave out --steps")
+    return config
