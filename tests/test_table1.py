@@ -129,12 +129,13 @@ def _paired(delta, n_seeds, noise=0.01):
     return p
 
 
-@pytest.mark.parametrize("delta, n, want", [(0.05, 10, "higher"), (-0.05, 10, "lower"),
-                                            (0.0, 10, "no difference detected"),
-                                            (-0.05, 3, "too few seeds")])
+@pytest.mark.parametrize("delta, n, want", [(0.1, 10, "contradicted"), (-0.1, 10, "reproduced"),
+                                            (0.0, 10, "equal within 0.05"),
+                                            (-0.1, 3, "not judged: fewer than 5 paired seeds")])
 def test_the_control_rule_gives_each_of_its_words(delta, n, want):
+    # a control asks "is a better?": lower EMD is better
     assert table_one.word(_paired(delta, n), "emd") == want
-    assert table_one.word(None, "emd") == "not run yet"
+    assert table_one.word(None, "emd") == "not judged: not run yet"
 
 
 def test_a_partial_aggregate_says_how_much_of_the_grid_it_rests_on(tmp_path, monkeypatch):
@@ -266,7 +267,7 @@ def test_the_summary_words_come_from_the_rule_on_the_aggregate(monkeypatch):
         return out
     monkeypatch.setattr(table1._im, "reference_shares", lambda r: {"reacher2": {
         "red": 0.5, "blue": 0.5, "none": 0.0}})
-    for delta, want in ((-0.05, "*lower*"), (0.0, "*no difference detected*")):
+    for delta, want in ((-0.1, "*reproduced*"), (0.0, "*equal within")):
         agg = table1.aggregate(recs(delta), LESSON)
         (line,) = table_one.summary_lines(agg)
         assert "`reacher2` (10 paired seeds)" in line and want in line.split(";")[0]
@@ -395,7 +396,7 @@ def test_against_start_counts_collapses_and_falls_per_seed_and_words_the_pair(mo
     assert "(10 seeds)" in line
     assert "collapsed seeds gail-coin 7, its start 0" in line
     assert "below its own start in 7 of 10 seeds" in line
-    assert "EMD gail-coin - bc-coin" in line and "*higher*" in line.split("EMD")[1]
+    assert "EMD gail-coin - bc-coin" in line and "*inconclusive*" in line.split("EMD")[1]   # below the smallest effect
     assert "from 0.40 to 0.70" in line
     assert table_one.against_start(agg, "dc-coin", "bc-coin") == []   # a row not run: no line
 
@@ -408,8 +409,9 @@ def _mix_rec(diffs_by_measure, n_seeds=5):
     rng = np.random.default_rng(0)
     for m, d in diffs_by_measure.items():
         x = rng.normal(0.5, 0.1, n_seeds)
-        entry[m] = stats.paired_diff(list(x + d + rng.normal(0, 0.005, n_seeds)),
-                                     list(x)).to_dict()
+        y = x + d + rng.normal(0, 0.005, n_seeds)
+        entry[m] = stats.paired_diff(list(y), list(x)).to_dict()
+        entry[f"{m}_diffs"] = (y - x).tolist()
     return {a: {"paired": [entry], "table": [], "expert": []} for a in ("mean", "sampled")}
 
 
@@ -417,15 +419,16 @@ def test_the_mixture_words_turn_by_each_measures_direction():
     from dc_lesson.experiments import table_one_mixture as tm
     rec = _mix_rec({"mode_tv": -0.2, "scaled_return": -0.2, "emd": 0.0})
     t = tm.tally(rec)[("bc-mix", "bc-full")]
-    assert t["mode_tv"]["better"] == ["reacher4"]          # lower TV is better
-    assert t["scaled_return"]["worse"] == ["reacher4"]     # lower return is worse
-    assert t["emd"]["no difference detected"] == ["reacher4"]
-    assert t["mode_tv"]["not run yet"] == ["reacher2", "halfcheetah2"]
+    assert t["mode_tv"]["reproduced"] == ["reacher4"]          # lower TV is better
+    assert t["scaled_return"]["contradicted"] == ["reacher4"]  # lower return is worse
+    assert t["emd"]["equal within 0.05"] == ["reacher4"]
+    assert t["mode_tv"]["not judged: not run yet"] == ["reacher2", "halfcheetah2"]
     few = tm.tally(_mix_rec({"mode_tv": -0.2}, n_seeds=3))[("bc-mix", "bc-full")]
-    assert few["mode_tv"] == {"too few seeds": ["reacher4"],
-                              "not run yet": ["reacher2", "halfcheetah2"]}
+    assert few["mode_tv"] == {"not judged: fewer than 5 paired seeds": ["reacher4"],
+                              "not judged: not run yet": ["reacher2", "halfcheetah2"]}
     line = tm.lines(rec)[0]
-    assert "mode TV: better on 1 (reacher4)" in line and "scaled return: worse on 1" in line
+    assert "mode TV: reproduced on 1 (reacher4)" in line
+    assert "scaled return: contradicted on 1" in line
 
 
 def test_mixture_shares_follow_the_experts_order_with_none_last():
@@ -455,7 +458,7 @@ def test_the_aggregate_pairs_the_mode_tv_per_seed(monkeypatch):
     out = table1.aggregate(recs, LESSON)
     e = table_one.paired(out, "bc-mix", "bc-full", "reacher2")
     assert e["mode_tv_diffs"] == pytest.approx([-0.2 - 0.01 * s for s in range(5)])
-    assert table_one.word(e, "mode_tv") == "lower"
+    assert table_one.word(e, "mode_tv") == "reproduced"      # lower mode TV: better
 
 
 def _modes_rec(tv, diff, n_seeds=10):
@@ -468,9 +471,10 @@ def _modes_rec(tv, diff, n_seeds=10):
     pairs = []
     for (row, task), d in diff.items():
         x = rng.normal(0.5, 0.1, n_seeds)
+        y = x + d + rng.normal(0, 0.005, n_seeds)
         pairs.append({"task": task, "a": "dc", "b": row, "n_seeds": n_seeds,
-                      "mode_tv": stats.paired_diff(list(x + d + rng.normal(0, 0.005, n_seeds)),
-                                                   list(x)).to_dict()})
+                      "mode_tv": stats.paired_diff(list(y), list(x)).to_dict(),
+                      "mode_tv_diffs": (y - x).tolist()})
     return {a: {"paired": pairs, "modes": modes, "table": [], "expert": []}
             for a in ("mean", "sampled")}
 
@@ -487,10 +491,10 @@ def test_the_mode_answer_judges_dc_against_the_better_trained_bc_and_the_floor()
     rec = _modes_rec(tv, diff)
     assert [tm.best_bc(rec, t) for t in tasks] == ["bc-lib", "bc-lib", "bc-full"]
     a = tm.against(rec)
-    assert [a[tm.BEST_BC][t][:2] for t in tasks] == [("bc-lib", "worse"), ("bc-lib", "worse"),
-                                                     ("bc-full", "better")]
-    assert all(a["bc"][t][1] == "better" for t in tasks)          # lower TV is better
-    assert a["gail"]["reacher2"][1] == "not run yet"
+    assert [a[tm.BEST_BC][t][:2] for t in tasks] == [
+        ("bc-lib", "contradicted"), ("bc-lib", "contradicted"), ("bc-full", "reproduced")]
+    assert all(a["bc"][t][1] == "reproduced" for t in tasks)      # lower TV is better
+    assert a["gail"]["reacher2"][1] == "not judged: not run yet"
     fl = tm.floor(rec)
     assert fl["reacher2"][0] == "above the expert's"
     assert fl["halfcheetah2"][0] == "not distinguished from the expert's"
@@ -498,8 +502,7 @@ def test_the_mode_answer_judges_dc_against_the_better_trained_bc_and_the_floor()
     assert "more modes than the better-trained BC on 1 of 3 tasks: halfcheetah2 only" in c
     assert "than the expert's own does (2 of 3 tasks: reacher2, reacher4)" in c
     lines = tm.lines(rec)
-    assert "worse on 2 (reacher2, reacher4); better on 1" not in lines[1]   # order is fixed
-    assert "better on 1 (halfcheetah2); worse on 2 (reacher2, reacher4)" in lines[1]
+    assert "reproduced on 1 (halfcheetah2); contradicted on 2 (reacher2, reacher4)" in lines[1]
 
 
 def test_the_mode_answer_has_one_sentence_per_outcome():

@@ -90,25 +90,26 @@ def _obs(diff, n_seeds=6, tasks=("ant", "walker"), counts=(4, 11), noise=0.01, s
     return {"observations": out}
 
 
+def _by(vs):
+    return {v.claim: v for v in vs}
+
+
 def test_verdicts_give_each_answer_and_judge_dril_at_the_fewest_demonstrations_only():
-    better = t3.verdicts(_obs(0.2))
-    assert {v["verdict"] for v in better if v["claim"] == t3.DC_BEATS_BC.name} == \
-        {"reproduced (all 2 tasks)"}
-    assert [v["n_demos"] for v in better if v["claim"] == t3.DC_BEATS_DRIL_FEW.name] == [4]
-    assert {v["verdict"] for v in better if v["claim"] == t3.GPRIL_LOWEST.name} == \
-        {"reproduced (all 2 tasks)"}
-    worse = t3.verdicts(_obs(-0.2))
-    assert {v["verdict"] for v in worse if v["claim"] == t3.DC_BEATS_BC.name} == \
-        {"contradicted (all 2 tasks)"}
-    null = t3.verdicts(_obs(0.0, noise=0.05))
-    assert {v["verdict"] for v in null if v["claim"] == t3.DC_BEATS_BC.name} == \
-        {"inconclusive (all 2 tasks)"}
-    assert {v["verdict"] for v in worse if v["claim"] == t3.GPRIL_LOWEST.name} == \
-        {"contradicted (all 2 tasks)"}
+    c = t3._claims
+    better = _by(t3.verdicts(_obs(0.2)))
+    assert better[c.DC_BEATS_BC.name].verdict == \
+        "reproduced (all 4 task-count pairs, Holm over 4)"
+    assert {e.key[1] for e in better[c.DC_BEATS_DRIL_FEW.name].per_task} == {4}
+    assert better[c.GPRIL_LOWEST.name].verdict.startswith("reproduced (all 4")
+    worse = _by(t3.verdicts(_obs(-0.2)))
+    assert worse[c.DC_BEATS_BC.name].verdict.startswith("contradicted (all 4")
+    assert worse[c.GPRIL_LOWEST.name].verdict.startswith("contradicted (all 4")
+    null = _by(t3.verdicts(_obs(0.0, noise=0.05)))
+    assert {e.word for e in null[c.DC_BEATS_BC.name].per_task} <= {
+        "inconclusive", "equal within 0.05"}
     few = t3.verdicts(_obs(0.2, n_seeds=3))
-    assert {v["claim"] for v in few} >= {t3.DC_BEATS_BC.name, t3.GPRIL_LOWEST.name,
-                                         t3.COMPARABLE}
-    assert all(v["verdict"].startswith("inconclusive") for v in few), "too few seeds"
+    assert all(e.word == "not judged: fewer than 5 paired seeds"
+               for v in few for e in v.per_task), "too few seeds"
 
 
 def _single(dc_minus_gail, spread, bc_growth, n_seeds=6):
@@ -129,42 +130,40 @@ def _single(dc_minus_gail, spread, bc_growth, n_seeds=6):
     return {"observations": out}
 
 
-def _verdict(vs, claim, n=None):
-    return {v["verdict"] for v in vs if v["claim"] == claim and (n is None or v["n_demos"] == n)}
+def _verdict(vs, claim):
+    return _by(vs)[claim].verdict
 
 
-def test_comparability_is_non_inferiority_with_a_declared_margin():
-    assert _verdict(t3.verdicts(_single(0.0, 0.01, 0.2)), t3.COMPARABLE) == \
-        {"reproduced (all 2 tasks)"}
+def test_comparability_is_equality_within_the_smallest_effect_or_better():
+    c = t3._claims
+    assert _verdict(t3.verdicts(_single(0.0, 0.01, 0.2)), c.COMPARABLE.name) == \
+        "equal within 0.05 (all 4 task-count pairs, Holm over 4)"
     # better than GAIL is "comparable or better": reproduced, not contradicted
-    assert _verdict(t3.verdicts(_single(0.3, 0.01, 0.2)), t3.COMPARABLE) == \
-        {"reproduced (all 2 tasks)"}
-    assert _verdict(t3.verdicts(_single(-0.3, 0.01, 0.2)), t3.COMPARABLE) == \
-        {"contradicted (all 2 tasks)"}
-    # a mean beyond the margin whose interval straddles it decides nothing, nor does a
-    # mean inside it with a wide interval
-    assert _verdict(t3.verdicts(_single(-0.12, 0.05, 0.2)), t3.COMPARABLE) == \
-        {"inconclusive (all 2 tasks)"}
-    assert _verdict(t3.verdicts(_single(0.0, 0.2, 0.2)), t3.COMPARABLE) == \
-        {"inconclusive (all 2 tasks)"}
-    assert _verdict(t3.verdicts(_single(0.0, 0.01, 0.2, n_seeds=4)), t3.COMPARABLE) == \
-        {"inconclusive; not judged on ant, hopper (fewer than 5 paired seeds)"}
+    assert _verdict(t3.verdicts(_single(0.3, 0.01, 0.2)), c.COMPARABLE.name).startswith(
+        "reproduced (all 4")
+    assert _verdict(t3.verdicts(_single(-0.3, 0.01, 0.2)), c.COMPARABLE.name).startswith(
+        "contradicted (all 4")
+    # a mean inside the bound with a wide interval decides nothing
+    assert _verdict(t3.verdicts(_single(0.0, 0.2, 0.2)), c.COMPARABLE.name).startswith(
+        "inconclusive (all 4")
+    assert _verdict(t3.verdicts(_single(0.0, 0.01, 0.2, n_seeds=4)), c.COMPARABLE.name) == \
+        ("not judged on ant (4), ant (25), hopper (4), hopper (25) (fewer than 5 paired "
+         "seeds)")
     # one seed has no interval: the evidence says so, never "[nan, nan]"
-    one = [v for v in t3.verdicts(_single(0.0, 0.01, 0.2, n_seeds=1)) if v["claim"] ==
-           t3.COMPARABLE]
-    assert one and all("(no interval)" in v["evidence"] and "nan" not in v["evidence"]
-                       and "fewer than" in v["evidence"] for v in one)
+    one = _by(t3.verdicts(_single(0.0, 0.01, 0.2, n_seeds=1)))[c.COMPARABLE.name]
+    assert "(no interval)" in one.evidence and "nan" not in one.evidence
 
 
 def test_bc_growth_compares_the_fewest_with_the_most_demonstrations_and_curves_are_judged():
-    grows = t3.verdicts(_single(0.1, 0.01, 0.2))
-    assert _verdict(grows, t3.BC_IMPROVES.name) == {"reproduced (all 2 tasks)"}
-    assert [v["n_demos"] for v in grows if v["claim"] == t3.BC_IMPROVES.name] == ["4 -> 25"]
-    assert _verdict(t3.verdicts(_single(0.1, 0.01, -0.2)), t3.BC_IMPROVES.name) == \
-        {"contradicted (all 2 tasks)"}
-    assert _verdict(grows, t3.DC_FASTER.name, 4) == {"reproduced (all 2 tasks)"}
-    assert _verdict(t3.verdicts(_single(-0.1, 0.01, 0.2)), t3.DC_FASTER.name, 4) == \
-        {"contradicted (all 2 tasks)"}
+    c = t3._claims
+    grows = _by(t3.verdicts(_single(0.1, 0.01, 0.2)))
+    assert grows[c.BC_IMPROVES.name].verdict.startswith("reproduced (all 2")
+    assert [e.key[1] for e in grows[c.BC_IMPROVES.name].per_task] == ["4 -> 25"] * 2
+    assert _verdict(t3.verdicts(_single(0.1, 0.01, -0.2)), c.BC_IMPROVES.name).startswith(
+        "contradicted (all 2")
+    assert grows[c.DC_FASTER.name].verdict.startswith("reproduced (all 2")
+    assert _verdict(t3.verdicts(_single(-0.1, 0.01, 0.2)), c.DC_FASTER.name).startswith(
+        "contradicted (all 2")
     assert t3.verdicts({"observations": []}) == []
 
 
@@ -175,62 +174,27 @@ def test_the_lesson_grid_has_seeds_enough_for_a_verdict():
         assert budget.get(name).table3_seeds >= claims.MIN_SEEDS, name
 
 
-def test_dc_against_its_start_is_judged_for_non_inferiority_too():
+def test_dc_against_its_start_is_judged_for_comparability_too():
+    c = t3._claims
     # _single: bc = 0.4 (+0.01 s), dc = gail + shift = 0.6 + shift: dc - bc = 0.2 + shift
-    keeps = t3.verdicts(_single(-0.25, 0.01, 0.0))       # dc - bc = -0.05: within the margin
-    assert _verdict(keeps, t3.COMPARABLE_BC) == {"reproduced (all 2 tasks)"}
-    assert _verdict(keeps, t3.DC_BEATS_BC.name) == {"contradicted (all 2 tasks)"}
-    loses = t3.verdicts(_single(-0.5, 0.01, 0.0))        # dc - bc = -0.3: beyond it
-    assert _verdict(loses, t3.COMPARABLE_BC) == {"contradicted (all 2 tasks)"}
-    assert all("dc - bc" in v["evidence"] and "(dc - bc)" in v["rule"]
-               for v in loses if v["claim"] == t3.COMPARABLE_BC)
+    keeps = _by(t3.verdicts(_single(-0.2, 0.01, 0.0)))       # dc - bc = 0: equal
+    assert keeps[c.COMPARABLE_BC.name].verdict.startswith("equal within 0.05 (all 4")
+    assert keeps[c.DC_BEATS_BC.name].verdict.startswith("equal within 0.05 (all 4")
+    loses = _by(t3.verdicts(_single(-0.5, 0.01, 0.0)))       # dc - bc = -0.3: beyond it
+    assert loses[c.COMPARABLE_BC.name].verdict.startswith("contradicted (all 4")
+    assert "dc - bc" in loses[c.COMPARABLE_BC.name].evidence
 
 
-def test_stability_compares_the_spread_of_the_second_half_of_each_curve():
-    def rec(dc_wobble, gail_wobble, dc_early=0.5, n_seeds=6):
-        out = []
-        for s in range(n_seeds):
-            for row, wob, early in (("dc", dc_wobble, dc_early), ("gail", gail_wobble, 0.5)):
-                # four checkpoints; only the last two (the second half) count
-                vals = [early, 0.5, 0.6 + wob * (1 + 0.1 * s), 0.6 - wob]
-                out.append({"task": "hopper", "n_demos": 4, "row": row, "seed": s,
-                            "scaled_return": 0.6, "curve": [
-                                {"steps": 10 * (i + 1), "scaled_return": v}
-                                for i, v in enumerate(vals)]})
-        return {"observations": out}
-    assert _verdict(t3.verdicts(rec(0.01, 0.2)), t3.DC_STABLE.name) == {"reproduced"}
-    assert _verdict(t3.verdicts(rec(0.2, 0.01)), t3.DC_STABLE.name) == {"contradicted"}
-    # a jump in the first half is learning, not instability: equal late spreads decide nothing
-    assert _verdict(t3.verdicts(rec(0.05, 0.05, dc_early=-0.9)), t3.DC_STABLE.name) == \
-        {"inconclusive"}
+def test_a_failed_competence_gate_is_not_judged_with_its_reason():
+    c = t3._claims
+    got = _by(t3.verdicts(_single(0.3, 0.01, 0.2), competence={"gail": "lost its start"}))
+    assert got[c.COMPARABLE.name].per_task[0].word == \
+        "not judged: gail failed the competence gate (lost its start)"
+    assert got[c.DC_BEATS_BC.name].verdict.startswith("reproduced")
 
 
-def test_curves_are_compared_on_the_checkpoints_every_learner_reached():
-    # GAIL's whole batches stop short of the last mark: DC's curve is cut there too, so a late
-    # wobble only DC's extra checkpoint shows cannot decide stability or speed.
-    out = []
-    for s in range(6):
-        dc = [0.5, 0.6, 0.6 + 0.01 * s, 0.6, -0.9 + 0.1 * s]       # its 5th point: a collapse
-        gail = [0.5, 0.6, 0.6 + 0.01 * s, 0.6]
-        for row, vals, marks in (("dc", dc, (20, 40, 60, 80, 100)), ("gail", gail,
-                                                                      (20.5, 41, 61.5, 82))):
-            out.append({"task": "hopper", "n_demos": 4, "row": row, "seed": s,
-                        "scaled_return": 0.6, "curve": [{"steps": m, "scaled_return": v}
-                                                        for m, v in zip(marks, vals)]})
-    vs = t3.verdicts({"observations": out})
-    assert _verdict(vs, t3.DC_STABLE.name) == {"inconclusive"}
-    assert _verdict(vs, t3.DC_FASTER.name) == {"inconclusive"}
-    assert [p["steps"] for p in t3._common_curves(out)[0]["curve"]] == [20, 40, 60, 80]
-
-
-def test_the_papers_returns_are_scaled_by_its_own_table_two():
-    # every task of its Table III has its expert and random returns, the expert above random
-    assert set(t3.PAPER_TABLE_III) <= set(t3.PAPER_TABLE_II)
-    for task, ((expert, _), (random, _)) in t3.PAPER_TABLE_II.items():
-        assert expert > random, task
-        assert t3.paper_scaled(task, expert) == 1 and t3.paper_scaled(task, random) == 0
-    # Reacher's returns are negative: scaling keeps "less negative is better"
-    assert 0 < t3.paper_scaled("reacher1", -9.63) < t3.paper_scaled("reacher1", -5.82) < 1
-    rows = t3.paper_rows()
-    hop = {r["row"]: r["paper_scaled"] for r in rows if (r["task"], r["n_demos"]) == ("hopper", 4)}
-    assert hop["gpril"] < 0.01 < hop["bc"] < hop["dc"] < 1
+def test_across_tasks_gives_iqm_and_probability_of_improvement():
+    rows = t3.across_tasks(_obs(0.2))
+    by = {r["learner"]: r for r in rows}
+    assert by["dc"]["P(dc > learner)"] == "" and by["bc"]["pairs"] == 4
+    assert by["gpril"]["P(dc > learner)"].startswith("1.00")

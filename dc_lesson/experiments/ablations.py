@@ -15,19 +15,18 @@ Every cell keeps a deterministic evaluation curve (``eval_curve``: mean-action e
 evenly spaced checkpoints) and DC's cells their per-iteration log (``curve``: the L1 distance
 between pi and pi' before averaging, the change of pi's parameters, ADMM's residuals).
 
-The claims are declared here, before any result is read, each with one measure per seed and
-one paired comparison, and judged by :func:`claims.judge_claim` (paired 95% interval:
-*reproduced*, *contradicted* or *inconclusive*; fewer than ``claims.MIN_SEEDS`` seeds is
-inconclusive).  Where the paper's comparison is confounded we judge the confound too:
-Figure 3 compares L = 4 with L = 1 at four times the interactions, so :data:`EQUAL_BUDGET`
-asks whether the loops or the interactions did it.
+The claims are declared in :mod:`claims` (:data:`claims.ABLATIONS`), each with one measure per
+seed and one paired comparison, and judged here by the one rule of :mod:`verdicts`.  Where the
+paper's comparison is confounded we judge the confound too: Figure 3 compares L = 4 with L = 1
+at four times the interactions, so ``claims.EQUAL_BUDGET`` asks whether the loops or the
+interactions did it.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from dc_lesson.experiments import verdict_rules as _claims
+from dc_lesson.experiments import claims as _claims, verdicts as _verdicts
 from dc_lesson.storage import read_result
 
 TASK = "hopper"
@@ -35,44 +34,7 @@ FILES = {"ablation": "dc_ablation.json", "dc_lr": "dc_lr.json", "gail_lr": "gail
 DEFAULT_LR = 3e-4        # DC's and GAIL's own rate: the pair Figure 5 compares
 EARLY = 0.5              # Figure 5: the first half of the interactions
 LOOP_ROWS = ("dc-loops=1", "dc-loops=2", "dc-loops=3", "dc-loops=4", "dc-loops=1-long")
-
-LOOPS = _claims.Claim(
-    "DC improves with more P_w loops", "Figure 3", "scaled_return", "dc-loops=4",
-    "dc-loops=1", +1, "the figure's two ends, paired by seed; L = 4 also has four times L = "
-    "1's interactions, so EQUAL_BUDGET is judged beside it")
-EQUAL_BUDGET = _claims.Claim(
-    "More loops beat one loop of the same length", "Figure 3 (our control)", "scaled_return",
-    "dc-loops=4", "dc-loops=1-long", +1,
-    "the same interactions and iterations in one loop: what the refits themselves add")
-LONG_LOOP = _claims.Claim(
-    "One long loop is comparable to several loops of the same length", "Figure 3",
-    "scaled_return", "dc-loops=1-long", "dc-loops=4", +1,
-    "the paper: 'increasing learner policy update number is able to attain comparable "
-    "performance with that trained with multiple loops' (why it then runs one loop); "
-    "non-inferiority with the book's margin. Declared after the ablation cells had run, when a "
-    "review found the paper's own claim unjudged beside our control EQUAL_BUDGET",
-    margin=_claims.MARGIN)
-LR_ROBUST = _claims.Claim(
-    "DC is robust to the learning rate; GAIL is not", "Figure 4", "worst_lr_return", "dc",
-    "gail", +1, "robustness is the worst case: per seed, the lowest final scaled return over "
-    "the sweep's rates, DC against GAIL (same warm start per seed)")
-FASTER = _claims.Claim(
-    "DC reaches a higher return than GAIL with few interactions (Hopper, deterministic "
-    "evaluations)", "Figure 5", "early_return",
-    "dc", "gail", +1, "per seed, the mean scaled return of the deterministic evaluations in "
-    "the first half of the interactions, both at their default rate 3e-4 (the lr sweeps' "
-    "cells: same start, same interactions); deterministic, so exploration noise is no factor")
-STABLE = _claims.Claim(
-    "DC is more stable than GAIL (Hopper, deterministic evaluations)", "Figure 5",
-    "late_spread", "dc", "gail", -1,
-    "per seed, the standard deviation of the deterministic evaluations over the second half "
-    "of the interactions (a run that keeps jumping is not stable), at the default rate")
-CONVERGES = _claims.Claim(
-    "The ADMM update converges: pi and pi' agree more as a loop goes on", "Figure 6",
-    "log_gap_ratio", "dc", "zero", -1, "per seed, the mean over loops of log(last quarter / "
-    "first quarter) of the L1 distance between pi and pi' before averaging: negative when "
-    "the two copies come together (the raw parameter-change ratio shows only 'not diverging')")
-CLAIMS = (LOOPS, EQUAL_BUDGET, LONG_LOOP, LR_ROBUST, FASTER, STABLE, CONVERGES)
+CLAIMS = _claims.ABLATIONS
 
 
 def load() -> dict:
@@ -173,19 +135,23 @@ def at_default_lr(obs) -> list[dict]:
     return out
 
 
-def verdicts(recs: dict | None = None) -> list[_claims.Verdict]:
-    """Each claim of :data:`CLAIMS`, judged on the stored aggregates (or ``recs``)."""
+def verdicts(recs: dict | None = None, competence: dict | None = None) -> list:
+    """Each claim of :data:`claims.ABLATIONS`, judged on the stored aggregates (or ``recs``);
+    one task, so each is its own family."""
+    c = _claims
     recs = load() if recs is None else recs
     obs = observations(recs)
-    out = [_claims.judge_claim(c, obs, [TASK]) for c in (LOOPS, EQUAL_BUDGET, LONG_LOOP)]
-    out.append(_claims.judge_claim(LR_ROBUST, worst_lr(obs, "dc") + worst_lr(obs, "gail"),
-                                   [TASK]))
-    default = at_default_lr(obs)
-    out.append(_claims.judge_claim(FASTER, default, [TASK], measure=early_return))
-    out.append(_claims.judge_claim(STABLE, default, [TASK], measure=late_spread))
+    judge = lambda claim, o, **kw: _verdicts.judge_claim(claim, o, [TASK], competence=competence,
+                                                        **kw)
+    out = [judge(claim, obs) for claim in (c.LOOPS, c.EQUAL_BUDGET, c.LONG_LOOP)]
+    starts = [o for o in obs if o["row"] == "bc"]    # the start's level for the gate
+    out.append(judge(c.LR_ROBUST, worst_lr(obs, "dc") + worst_lr(obs, "gail") + starts))
+    default = at_default_lr(obs) + starts
+    out.append(judge(c.FASTER, default, measure=early_return))
+    out.append(judge(c.STABLE, default, measure=late_spread))
     dc = [o for o in obs if o["row"] == "dc"]
     zero = [{**o, "row": "zero"} for o in dc]
-    out.append(_claims.judge_claim(CONVERGES, dc + zero, [TASK], measure=lambda o: (
+    out.append(judge(c.CONVERGES, dc + zero, measure=lambda o: (
         0.0 if o["row"] == "zero" else log_gap_ratio(o))))
     return out
 
@@ -253,6 +219,5 @@ def gap_traces(obs, row: str = "dc", key: str = "pi_pi_prime_l1") -> list[np.nda
             for o in obs if o["row"] == row and key in (o.get("curve") or {})]
 
 
-__all__ = ["CLAIMS", "CONVERGES", "EQUAL_BUDGET", "FASTER", "LOOPS", "LR_ROBUST", "STABLE",
-           "at_default_lr", "early_return", "eval_curves", "gap_traces", "late_spread", "load",
+__all__ = ["CLAIMS", "at_default_lr", "early_return", "eval_curves", "gap_traces", "late_spread", "load",
            "log_gap_ratio", "lr_lines", "observations", "rows_table", "verdicts", "worst_lr"]

@@ -3,10 +3,11 @@
 either evaluation, the paired comparisons, the mode-coverage summary, the paper's values beside
 ours, and the one rule that turns a control's paired interval into a word.
 
-A control arm answers a question the paper did not ask ("what does the SoftFlow reward add?"),
-so it has no predicted sign: its word is ``higher`` or ``lower`` when the paired 95% interval of
-``a - b`` excludes zero (and at least ``claims.MIN_SEEDS`` seeds are paired), ``no difference
-detected`` when it includes zero, and ``too few seeds`` otherwise.
+A control arm answers a question the paper did not ask ("what does the SoftFlow reward add?");
+each is asked as "is ``a`` better than ``b`` on the measure?" (lower is better on EMD and mode
+TV, higher on scaled return) and answered in :mod:`verdicts`' words by its one rule:
+*reproduced* (yes), *contradicted* (``a`` is worse), *equal within B*, *inconclusive*, or
+*not judged: reason*; one control over the three tasks is one Holm family.
 """
 
 from __future__ import annotations
@@ -14,7 +15,7 @@ from __future__ import annotations
 import statistics
 
 from dc_lesson.evaluation import stats
-from dc_lesson.experiments import claims
+from dc_lesson.experiments import claims, verdicts as _verdicts
 from dc_lesson.experiments.report import fmt, fmt_entry
 from dc_lesson.storage import read_result
 
@@ -69,9 +70,9 @@ CONTROLS = (
     ("dc", "bc-lib", "emd", "does DC beat the standard library's BC?"),
     ("gail", "bc-lib", "scaled_return", "does GAIL beat the standard library's BC?"),
     ("dc", "dc-noppo", "emd", "what does DC's PPO step on log P add to BC continuation?"),
-    ("dc", "dc-raw", "emd", "does our scaled reward differ from the paper's raw log P?"),
+    ("dc", "dc-raw", "emd", "does our scaled reward beat the paper's raw log P?"),
     ("dc", "dc-gailreward", "emd", "does the SoftFlow density beat a discriminator in Alg. 2?"),
-    ("gail", "gail-state", "emd", "does a state-only discriminator change GAIL?"),
+    ("gail", "gail-state", "emd", "does GAIL's (s, a) discriminator beat a state-only one?"),
     ("gail", "gail-noisy", "scaled_return", "does GAIL's quieter start (log-std -2) help it?"),
     ("dc-mix", "dc", "emd", "does the mixture policy help DC?"),
     ("bc-mix", "bc-full", "emd", "does the mixture policy help BC?"),
@@ -138,31 +139,50 @@ def paired(rec: dict, a: str, b: str, task: str, actions: str = "mean") -> dict 
     return None
 
 
-def word(entry: dict | None, measure: str) -> str:
-    """The control rule (module docstring) on one paired entry."""
-    if not entry or measure not in entry:
-        return "not run yet"
-    d = entry[measure]
-    if entry["n_seeds"] < claims.MIN_SEEDS or d["lo"] is None or d["hi"] is None:
-        return "too few seeds"
-    if d["lo"] > 0:
-        return "higher"
-    if d["hi"] < 0:
-        return "lower"
-    return "no difference detected"
+def word(entry: dict | None, measure: str, rec: dict | None = None,
+         actions: str = "mean") -> str:
+    """The control rule (module docstring) on one paired entry alone: is ``a`` better than
+    ``b`` on ``measure``?  ``rec``: the aggregate whose expert rows bound the divergences."""
+    if not entry or f"{measure}_diffs" not in entry:
+        return f"{_verdicts.NOT_JUDGED}: not run yet"
+    floor = claims.floors(rec, actions).get(entry["task"], {}).get(measure)
+    return _verdicts.word_of_diffs(entry[f"{measure}_diffs"], measure,
+                                   _verdicts.BETTER[measure], floor)
+
+
+def said(entry: dict | None, measure: str, rec: dict | None = None,
+         actions: str = "mean") -> str:
+    """``a - b`` on ``measure`` as ``mean [lo, hi], *word*`` (the rule's t interval and its
+    word, with which row is better when it is decisive)."""
+    if not entry or f"{measure}_diffs" not in entry:
+        return f"*{word(entry, measure)}*"
+    t = _verdicts.paired_t(entry[f"{measure}_diffs"])
+    band = (f" [{_verdicts.fmt_num(t.lo)}, {_verdicts.fmt_num(t.hi)}]" if t.n >= 2 else "")
+    w = word(entry, measure, rec, actions)
+    side = {_verdicts.REPRODUCED: f" ({entry['a']} better)",
+            _verdicts.CONTRADICTED: f" ({entry['a']} worse)"}.get(w, "")
+    return f"{_verdicts.fmt_num(t.mean)}{band}, *{w}*{side}"
 
 
 def controls(rec: dict, actions: str = "mean") -> list[dict]:
-    """Every control on every task: the question, ``a - b`` with its interval, the word."""
-    out = []
+    """Every control on every task: the question, ``a - b`` with its interval, the word
+    (Holm across the control's tasks) and, beside it, the reason it is not judged."""
+    out, floor = [], claims.floors(rec, actions)
     for a, b, measure, question in CONTROLS:
+        c = _verdicts.Claim(question, "control", measure, a, b, _verdicts.BETTER[measure],
+                            question, start=None)
+        got = {e.key: e for e in _verdicts.judge_claim(c, rec[actions]["observations"],
+                                                       TASKS, floors=floor).per_task}
         for task in TASKS:
-            e = paired(rec, a, b, task, actions)
-            d = (e or {}).get(measure)
+            e = got.get(task)
+            w = e.word if e else f"{_verdicts.NOT_JUDGED}: not run yet"
             out.append({"question": question, "task": task, "measure": measure,
                         "a - b": f"{a} - {b}",
-                        "difference": fmt(d["mean"], d["lo"], d["hi"], 3) if d else "",
-                        "seeds": e["n_seeds"] if e else 0, "word": word(e, measure)})
+                        "difference": (f"{_verdicts.fmt_num(e.mean)} [{_verdicts.fmt_num(e.lo)}"
+                                       f", {_verdicts.fmt_num(e.hi)}]") if e and e.n >= 2
+                        else "", "seeds": e.n if e else 0,
+                        "word": _verdicts.kind(w),
+                        "reason": w.split(": ", 1)[1] if ": " in w else w[len(_verdicts.kind(w)):].strip()})
     return out
 
 
@@ -265,7 +285,7 @@ def against_start(rec: dict, row: str, start: str, actions: str = "mean") -> lis
         e = paired(rec, row, start, task, actions)
         for m, label in (("emd", "EMD"), ("scaled_return", "scaled return")):
             if e and m in e:
-                bits.append(f"{label} {row} - {start} {fmt_entry(e, m, 3)}, *{word(e, m)}*")
+                bits.append(f"{label} {row} - {start} {said(e, m, rec, actions)}")
         bits.append(f"{row} below its own start in {below} of {len(seeds)} seeds, its scaled "
                     f"return from {min(ret):.2f} to {max(ret):.2f} over seeds")
         out.append("* " + "; ".join(bits) + ".")
@@ -312,9 +332,9 @@ def summary_lines(rec: dict, actions: str = "mean") -> list[str]:
             continue
         m_dc, m_bc = modes.get((task, "dc")), modes.get((task, "bc"))
         bits = [f"`{task}` ({e_bc['n_seeds']} paired seeds): DC's EMD minus its start's "
-                f"{fmt_entry(e_bc, 'emd', 3)}, *{word(e_bc, 'emd')}*"]
+                f"{said(e_bc, 'emd', rec, actions)}"]
         if e_gail and "emd" in e_gail:
-            bits.append(f"minus GAIL's {fmt_entry(e_gail, 'emd', 3)}, *{word(e_gail, 'emd')}*")
+            bits.append(f"minus GAIL's {said(e_gail, 'emd', rec, actions)}")
         if m_dc and m_bc:
             bits.append(f"mode TV from the expert's shares {fmt(m_dc['tv_ci']['mean'], m_dc['tv_ci']['lo'], m_dc['tv_ci']['hi'], 2)} "
                         f"against the start's {fmt(m_bc['tv_ci']['mean'], m_bc['tv_ci']['lo'], m_bc['tv_ci']['hi'], 2)} "
@@ -353,4 +373,4 @@ def costs(rec: dict, since: str | None = None, until: str | None = None) -> list
 __all__ = ["CONTROLS", "PAPER_TABLE_I", "RESULT", "ROWS", "TASKS", "beside_paper", "controls",
            "against_start", "costs", "coverage_figures", "curves", "features",
            "final_logs", "summary_lines",
-           "load", "paired", "rank_agreement", "status", "table", "word"]
+           "load", "paired", "rank_agreement", "said", "status", "table", "word"]

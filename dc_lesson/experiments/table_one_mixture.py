@@ -13,16 +13,16 @@ The comparisons (:data:`COMPARISONS`), each paired by seed over the mixture rows
   differ in more than the policy class (the Gaussian DC starts from the paper's 70/30 BC, the
   mixture DC from the mixture BC on all 18), so a difference here is the whole recipe's.
 
-Each is judged on three measures, each by the control rule of :mod:`table_one` (*higher*,
-*lower*, *no difference detected*, *too few seeds*): the TV distance of the seed's mode shares
-from the expert's (``mode_tv``; lower is better), the scaled return (higher is better) and the
-EMD of the mode features (lower is better).  :func:`tally` turns the words into *better* and
-*worse* by each measure's direction; :func:`lines` renders them.
+Each is judged on three measures by the one rule of :mod:`verdicts` (is the mixture row
+better?): the TV distance of the seed's mode shares from the expert's (``mode_tv``; lower is
+better), the scaled return (higher is better) and the EMD of the mode features (lower is
+better).  :func:`tally` groups the words by task; :func:`lines` renders them.
 """
 
 from __future__ import annotations
 
 from dc_lesson.experiments.report import fmt_entry
+from dc_lesson.experiments import claims, verdicts as _verdicts
 from dc_lesson.experiments.table_one import TASKS, paired, word
 
 # (mixture row, the row it is compared with, the demonstrations, what the difference isolates)
@@ -56,13 +56,14 @@ def table(rec: dict, actions: str = "mean", digits: int = 3) -> list[dict]:
     return out
 
 
-def verdict(entry: dict | None, measure: str, direction: int) -> str:
-    """``better``, ``worse``, ``no difference detected`` or ``too few seeds`` (or ``not run
-    yet``) for the mixture row ``a`` of a paired entry, by the measure's direction."""
-    w = word(entry, measure)
-    if w in ("higher", "lower"):
-        return "better" if (w == "higher") == (direction > 0) else "worse"
-    return w
+def verdict(entry: dict | None, measure: str, direction: int, rec: dict | None = None,
+            actions: str = "mean") -> str:
+    """The word for "the mixture row ``a`` of a paired entry is better" by the measure's
+    direction (the rule of :mod:`verdicts`, on its own: no family)."""
+    if not entry or f"{measure}_diffs" not in entry:
+        return f"{_verdicts.NOT_JUDGED}: not run yet"
+    floor = claims.floors(rec, actions).get(entry["task"], {}).get(measure)  # divergences
+    return _verdicts.word_of_diffs(entry[f"{measure}_diffs"], measure, direction, floor)
 
 
 def tally(rec: dict, actions: str = "mean") -> dict:
@@ -72,27 +73,26 @@ def tally(rec: dict, actions: str = "mean") -> dict:
         per = out.setdefault((a, b), {})
         for m, _, direction in MEASURES:
             for task in TASKS:
-                v = verdict(paired(rec, a, b, task, actions), m, direction)
+                v = verdict(paired(rec, a, b, task, actions), m, direction, rec, actions)
                 per.setdefault(m, {}).setdefault(v, []).append(task)
     return out
 
 
 def count_words(by_verdict: dict) -> str:
-    """``{verdict: [tasks]}`` in words: ``better on every task`` or ``better on 2 (reacher2,
-    reacher4); worse on 1 (halfcheetah2)``, verdicts in a fixed order."""
-    order = ("better", "worse", "no difference detected", "too few seeds", "not run yet")
+    """``{word: [tasks]}`` in words: ``reproduced on every task`` or ``reproduced on 2
+    (reacher2, reacher4); contradicted on 1 (halfcheetah2)``, in the vocabulary's order."""
     by_verdict = {v: ts for v, ts in by_verdict.items() if ts}
     if len(by_verdict) == 1:
         return f"{next(iter(by_verdict))} on every task"
-    parts = [f"{v} on {len(by_verdict[v])} ({', '.join(by_verdict[v])})"
-             for v in order if by_verdict.get(v)]
+    order = sorted(by_verdict, key=lambda w: (_verdicts.WORDS.index(_verdicts.kind(w)), w))
+    parts = [f"{v} on {len(by_verdict[v])} ({', '.join(by_verdict[v])})" for v in order]
     return "; ".join(parts)
 
 
 def lines(rec: dict, actions: str = "mean") -> list[str]:
     """One rendered Markdown line per comparison: per measure, on how many tasks the mixture
-    row came out better, worse or indistinguishable (its paired 95% interval over at least
-    ``claims.MIN_SEEDS`` seeds), naming the tasks."""
+    row came out better (*reproduced*), worse (*contradicted*), equal or undecided, naming the
+    tasks."""
     t = tally(rec, actions)
     out = []
     for a, b, demos, what in COMPARISONS:

@@ -15,8 +15,8 @@ against an alternative (:data:`COMPARATORS`):
   ``dc-gailreward`` (Algorithm 2 with a discriminator for log P: whether the density is what
   matters) and ``gail``.
 
-Each comparison's word is *better* / *worse* (the paired interval excludes zero, at least
-``claims.MIN_SEEDS`` seeds), *no difference detected* or *too few seeds*
+Each comparison's word is :mod:`verdicts`' for "DC's mode TV is lower": *reproduced* (better),
+*contradicted* (worse), *equal within 0.05*, *inconclusive* or *not judged: reason*
 (:func:`table_one_mixture.verdict` with lower-is-better).  And the floor: the expert scored like
 a learner on disjoint episodes has a mode TV of its own (finite episodes); DC is *above the
 expert's* on a task when DC's interval lies wholly above the expert's (unpaired, so cautious),
@@ -32,6 +32,7 @@ from __future__ import annotations
 
 from dc_lesson.experiments.report import fmt
 from dc_lesson.experiments.table_one import TASKS, paired
+from dc_lesson.experiments import verdicts as V
 from dc_lesson.experiments.table_one_mixture import count_words, verdict
 
 BEST_BC = "best-bc"       # the stand-in name of the better-trained BC, resolved per task
@@ -78,7 +79,7 @@ def against(rec: dict, actions: str = "mean") -> dict:
         for task in TASKS:
             row = best_bc(rec, task, actions) if comp == BEST_BC else comp
             e = paired(rec, "dc", row, task, actions) if row else None
-            out.setdefault(comp, {})[task] = (row, verdict(e, "mode_tv", -1), e)
+            out.setdefault(comp, {})[task] = (row, verdict(e, "mode_tv", -1, rec, actions), e)
     return out
 
 
@@ -139,11 +140,11 @@ def mechanism(rec: dict, actions: str = "mean") -> str:
     (``dc-gailreward``).  The toy predicts the RL step alone keeps no modes; the sentence says
     whether the grid agrees, and whether the density in particular is what helps."""
     a = against(rec, actions)
-    rl_better, rl_worse = _tasks(a["dc-noppo"], "better"), _tasks(a["dc-noppo"], "worse")
-    d_better, d_worse = (_tasks(a["dc-gailreward"], "better"),
-                         _tasks(a["dc-gailreward"], "worse"))
+    rl_better, rl_worse = _tasks(a["dc-noppo"], V.REPRODUCED), _tasks(a["dc-noppo"], V.CONTRADICTED)
+    d_better, d_worse = (_tasks(a["dc-gailreward"], V.REPRODUCED),
+                         _tasks(a["dc-gailreward"], V.CONTRADICTED))
     judged = [t for t, (_, v, _) in a["dc-gailreward"].items()
-              if v in ("better", "worse", "no difference detected")]
+              if V.kind(v) != V.NOT_JUDGED]
     if rl_better:
         s = f"DC's PPO step lowers the mode TV against BC continuation on {_n(rl_better)}"
         low = [t for t in rl_better if _none(rec, t, "dc-noppo", actions) >= LOW_BAR]
@@ -189,7 +190,7 @@ def conclusion(rec: dict, actions: str = "mean") -> str:
     Then whether DC's mode mix is above the expert's own on every task where both ran.
     """
     a = against(rec, actions)
-    start, best = _tasks(a["bc"], "better"), _tasks(a[BEST_BC], "better")
+    start, best = _tasks(a["bc"], V.REPRODUCED), _tasks(a[BEST_BC], V.REPRODUCED)
     if len(best) == len(TASKS):
         s = "DC keeps the modes better than BC can: lower mode TV than the better-trained BC "
         s += "on every task"
@@ -197,7 +198,7 @@ def conclusion(rec: dict, actions: str = "mean") -> str:
         s = f"DC keeps more modes than the better-trained BC on {_n(best)} only"
     elif start:
         low = [t for t in start if _none(rec, t, "bc", actions) >= LOW_BAR]
-        worse = _tasks(a[BEST_BC], "worse")
+        worse = _tasks(a[BEST_BC], V.CONTRADICTED)
         s = (f"DC keeps more modes than the start it is given ({_n(start)}"
              + (f"; a low bar on {', '.join(low)}, where the start's episodes mostly arrive "
                 f"nowhere" if low else "") + "), "
@@ -205,7 +206,7 @@ def conclusion(rec: dict, actions: str = "mean") -> str:
                 f"higher than the better-trained BC's on {_n(worse)}, lower on none)" if worse
                 else "but no more than BC trained well on the same demonstrations (on no "
                      "task is its mode TV lower than the better-trained BC's)"))
-    elif all(v in ("too few seeds", "not run yet") for _, v, _ in a["bc"].values()):
+    elif all(V.kind(v) == V.NOT_JUDGED for _, v, _ in a["bc"].values()):
         s = "too few paired seeds to say whether DC keeps more modes than its start"
     else:
         s = "DC keeps no more modes than the start it is given (on no task is its mode TV lower)"

@@ -24,6 +24,7 @@ import numpy as np
 
 from dc_lesson.evaluation import stats
 from dc_lesson.experiments import ablations as _ablations, claims as _claims
+from dc_lesson.experiments import verdicts as _verdicts
 from dc_lesson.experiments.report import fmt
 from dc_lesson.storage import read_result
 
@@ -192,71 +193,11 @@ def rank_agreement(rec: dict, task: str, n_demos: int) -> dict:
             "paper_best": max(shared, key=paper.get), "our_best": max(shared, key=ours.get)}
 
 
-# The paper's Table III / Figure 9 claims (its Section V text), each with its rule declared
-# in advance: scaled return, paired by seed and warm start, per task and demonstration count.
-DC_BEATS_BC = _claims.Claim(
-    "DC outperforms BC at every demonstration count", "Sec. V, Fig. 9 / Table III",
-    "scaled_return", "dc", "bc", +1,
-    "the paper: 'DC consistently outperforms BC with different numbers of expert "
-    "demonstrations'; BC is DC's own start, so the pair isolates what DC adds")
-DC_BEATS_DRIL_FEW = _claims.Claim(
-    "DC outperforms DRIL with few demonstrations", "Sec. V, Fig. 9", "scaled_return",
-    "dc", "dril", +1, "the paper: 'DC outperforms DRIL particularly with a limited number of "
-    "expert trajectories'; judged at the fewest demonstrations")
-GPRIL_LOWEST = _claims.Claim(
-    "GPRIL is the lowest of the learners", "Sec. V, Fig. 9", "scaled_return", "gpril",
-    "lowest-other", -1, "the paper: 'the GPRIL learner policies have the lowest performances "
-    "in all tasks'; judged per seed against the lowest of the other six learners' returns "
-    "(row lowest-other), so it holds only if GPRIL is below every one of them")
-BC_IMPROVES = _claims.Claim(
-    "BC improves with more demonstrations", "Sec. V, Fig. 9", "scaled_return",
-    "bc@most", "bc@fewest", +1, "the paper: 'the performance of the BC learner policies "
-    "increase with more expert demonstrations'; BC at the most demonstrations against BC at "
-    "the fewest, paired by seed")
-DC_FASTER = _claims.Claim(
-    "DC's return during training is above GAIL's", "Sec. V, Fig. 11", "curve_mean",
-    "dc", "gail", +1, "the paper: 'DC has more stable training curves ... with higher "
-    "convergence speed'; we judge the speed half: the mean of a run's checkpoint evaluations "
-    "(the area under its Figure 11 curve, mean action) is high only if the run gets good "
-    "early and stays good; stability is DC_STABLE")
-DC_STABLE = _claims.Claim(
-    "DC's training curve is more stable than GAIL's", "Sec. V, Fig. 11", "curve_spread",
-    "dc", "gail", -1, "the paper: 'DC has more stable training curves (with less mean return "
-    "perturbation)'; per seed, the standard deviation of the checkpoint evaluations (mean "
-    "action) over the second half of the interactions, the hopper ablation's measure "
-    "(ablations.STABLE) on Figure 11's curves")
-CLAIMS = (DC_BEATS_BC, DC_BEATS_DRIL_FEW, GPRIL_LOWEST, BC_IMPROVES, DC_FASTER, DC_STABLE)
-
-# "DC has comparable performances with GAIL" (the paper: comparable or better) is judged as
-# non-inferiority: reproduced if the paired 95% interval of dc - gail lies above -MARGIN (DC
-# is not worse by a tenth of the expert's return over random: a one-sided test at 2.5%),
-# contradicted if it lies wholly below -MARGIN, inconclusive otherwise.  The margin is our
-# declaration, fixed before any result.  The paper's summary claim "comparable or better
-# performance than IL baselines" is judged the same way against BC, DC's own start: the one
-# form of "DC adds to BC" that can hold where the start already earns the expert's return.
-MARGIN = _claims.MARGIN
-COMPARABLE = f"DC is at least comparable to GAIL (not worse by {MARGIN} scaled return)"
-COMPARABLE_BC = f"DC is at least comparable to BC (not worse by {MARGIN} scaled return)"
-NON_INFERIOR = {COMPARABLE: "gail", COMPARABLE_BC: "bc"}     # claim: the row DC is held to
-
-
-def _non_inferior_claim(claim: str, b: str | None = None) -> _claims.Claim:
-    return _claims.Claim(claim, "Sec. V, Table III", "scaled_return", "dc",
-                         b or NON_INFERIOR[claim], +1,
-                         "non-inferiority with the declared margin", margin=MARGIN)
-
-
-def non_inferior_rule(b: str = "gail") -> str:
-    return _non_inferior_claim(f"DC is at least comparable to {b}", b).rule
-
-
-COMPARABLE_RULE = non_inferior_rule("gail")
-
-
-def _non_inferior(obs, n, claim: str = COMPARABLE) -> dict:
-    v = _claims.judge_claim(_non_inferior_claim(claim), obs)
-    return {"claim": claim, "n_demos": n, "verdict": judged_count(v.per_task),
-            "evidence": v.evidence, "rule": v.rule, "per_task": v.per_task}
+# The paper's Table III / Figure 9 / Figure 11 claims are declared in ``claims``
+# (:data:`claims.TABLE_THREE`) and judged here, each claim one Holm family over its (task,
+# demonstration count) pairs.
+CLAIMS = _claims.TABLE_THREE
+FEWEST_ONLY = (_claims.DC_BEATS_DRIL_FEW, _claims.DC_FASTER, _claims.DC_STABLE)
 
 
 def _lowest_other(obs) -> list[dict]:
@@ -302,23 +243,11 @@ def _curve_spread(o) -> float | None:
     return _ablations.late_spread({"eval_curve": o.get("curve")})
 
 
-def judged_count(per_task) -> str:
-    """A claim's verdict over the tasks with at least ``MIN_SEEDS`` paired seeds, the others
-    named apart: the planner tasks' reduced rows (one RL seed by design) would otherwise make
-    every claim at the fewest demonstrations "inconclusive on 3 of 7 tasks" however the
-    other tasks come out."""
-    judged = [p for p in per_task if p[5] >= _claims.MIN_SEEDS]
-    few = [p[0] for p in per_task if p[5] < _claims.MIN_SEEDS]
-    word = _claims.count(judged) if judged else "inconclusive"
-    return word + (f"; not judged on {', '.join(few)} (fewer than {_claims.MIN_SEEDS} paired "
-                   f"seeds)" if few else "")
-
-
-def verdicts(rec: dict) -> list[dict]:
-    """Each claim's verdict per demonstration count (DRIL's and the curves' at the fewest
-    only, BC's growth once, fewest against most), over the tasks that have run:
-    ``{"claim", "n_demos", "verdict", "evidence", "rule", "per_task"}``, ``per_task`` holding
-    ``(task, verdict, mean, lo, hi, n_seeds)`` per task."""
+def verdicts(rec: dict, competence: dict | None = None) -> list:
+    """Each claim of :data:`CLAIMS` (a :class:`verdicts.Verdict`), judged over the (task,
+    count) pairs that have run: DRIL's and the curves' at the fewest demonstrations only,
+    BC's growth once per task (fewest against most, keyed ``"F -> M"``).  ``competence``:
+    learner -> why it failed its competence gate (those comparisons are not judged)."""
     obs = [{**o, "curve_mean": _curve_mean(o), "curve_spread": _curve_spread(o)}
            for o in _common_curves([o for o in rec["observations"] if o["row"] != "expert"])]
     obs += _lowest_other(obs)
@@ -327,23 +256,47 @@ def verdicts(rec: dict) -> list[dict]:
     if not counts:
         return out
     for claim in CLAIMS:
-        if claim is BC_IMPROVES:
+        if claim is _claims.BC_IMPROVES:
             if len(counts) < 2:
                 continue
-            rows = [{**o, "row": "bc@fewest" if o["n_demos"] == counts[0] else "bc@most"}
-                    for o in obs if o["row"] == "bc" and o["n_demos"] in (counts[0],
-                                                                          counts[-1])]
-            groups = [(f"{counts[0]} -> {counts[-1]}", rows)]
+            span = f"{counts[0]} -> {counts[-1]}"
+            group = [{**o, "n_demos": span,
+                      "row": "bc@fewest" if o["n_demos"] == counts[0] else "bc@most"}
+                     for o in obs if o["row"] == "bc" and o["n_demos"] in (counts[0],
+                                                                           counts[-1])]
         else:
-            few = claim in (DC_BEATS_DRIL_FEW, DC_FASTER, DC_STABLE)
-            groups = [(n, [o for o in obs if o["n_demos"] == n])
-                      for n in (counts[:1] if few else counts)]
-        for n, group in groups:
-            v = _claims.judge_claim(claim, group)
-            out.append({"claim": claim.name, "n_demos": n, "verdict": judged_count(v.per_task),
-                        "evidence": v.evidence, "rule": claim.rule, "per_task": v.per_task})
-    out += [_non_inferior([o for o in obs if o["n_demos"] == n], n, claim)
-            for claim in NON_INFERIOR for n in counts]
+            keep = counts[:1] if claim in FEWEST_ONLY else counts
+            group = [o for o in obs if o["n_demos"] in keep]
+        out.append(_verdicts.judge_claim(claim, group, by=("task", "n_demos"),
+                                         competence=competence, unit="task-count pairs"))
+    return out
+
+
+def across_tasks(rec: dict, n_demos=None, target: str = "dc", measure: str = "scaled_return",
+                 seed: int = 0) -> list[dict]:
+    """rliable's headline (Agarwal et al. 2021) over the (task, count) pairs where every
+    learner ran (``n_demos``: one count, or all): per learner, the IQM over pairs and seeds
+    with its stratified bootstrap interval, and the probability that a ``target`` run beats
+    one of the learner's on the same pair (``P(dc > X)``) with its interval."""
+    obs = [o for o in rec["observations"] if o["row"] in LEARNERS and o.get(measure) is not None
+           and (n_demos is None or o["n_demos"] == n_demos)]
+    by: dict = {}
+    for o in obs:
+        by.setdefault(o["row"], {}).setdefault((o["task"], o["n_demos"]), []).append(o[measure])
+    strata = sorted(set.intersection(*(set(v) for v in by.values()))) if by else []
+    if target not in by or not strata:
+        return []
+    out = []
+    for row in LEARNERS:
+        if row not in by:
+            continue
+        x = [by[row][k] for k in strata]
+        iqm = stats.iqm_tasks(x, seed=seed)
+        poi = (stats.probability_of_improvement([by[target][k] for k in strata], x, seed=seed)
+               if row != target else None)
+        out.append({"learner": row, "IQM": fmt(iqm.mean, iqm.lo, iqm.hi, 2),
+                    f"P({target} > learner)": fmt(poi.mean, poi.lo, poi.hi, 2) if poi else "",
+                    "pairs": len(strata), "runs": sum(len(v) for v in x)})
     return out
 
 
@@ -360,5 +313,7 @@ def figure8(rec1: dict, actions: str = "mean") -> dict:
             for t, rows in out.items()}
 
 
-__all__ = ["judged_count", "PAPER_TABLE_II", "paper_scaled", "BC_IMPROVES", "CLAIMS", "COMPARABLE", "COMPARABLE_BC", "COMPARABLE_RULE", "NON_INFERIOR", "non_inferior_rule", "DC_BEATS_BC", "DC_FASTER", "DC_STABLE", "MARGIN", "DC_BEATS_DRIL_FEW", "GPRIL_LOWEST", "LEARNERS", "PAPER_COLUMNS", "PAPER_TABLE_III", "RESULT", "figure11", "figure8",
-           "figure9", "kendall_tau", "load", "paper_rows", "rank_agreement", "table", "UNCERTAIN", "verdicts"]
+__all__ = ["CLAIMS", "FEWEST_ONLY", "LEARNERS", "PAPER_COLUMNS", "PAPER_TABLE_II",
+           "PAPER_TABLE_III", "RESULT", "UNCERTAIN", "across_tasks", "figure11", "figure8",
+           "figure9", "kendall_tau", "load", "paper_rows", "paper_scaled", "rank_agreement",
+           "table", "verdicts"]

@@ -1,44 +1,35 @@
-"""Chapter 06's answer in words, rendered from the Table III aggregate by fixed rules.
+"""Chapter 06's answer in words, rendered from :func:`table_three.verdicts` by fixed rules.
 
-:func:`table_three.verdicts` judges each of the paper's single-mode claims per task and
-demonstration count.  A verdict alone can mislead on this grid: where the common BC start
-already earns the expert's return (our cartpole and hopper ports), "DC outperforms BC" can
-only be contradicted or inconclusive, and a difference of a thousandth of the expert's return
-is as *significant* as a large one when every seed agrees; where the start sits at the random
-level (the planner tasks), every RL learner starts from nothing it can use.  So each
-sentence says, beside its verdicts, where the start left no room, by a rule declared here
-(after the paired rule, which it never changes):
+Every word is :mod:`verdicts`' (*reproduced*, *contradicted*, *equal within 0.05*,
+*inconclusive*, *not judged: reason*); this module only groups them.  Where the common BC
+start already earns the expert's return (within ``verdicts.LEVEL_GAP`` of 1: our cartpole and
+hopper ports) "DC outperforms BC" cannot be shown, so that comparison is *not judged: start at
+the ceiling*, and what is left to ask there is whether DC keeps the start's return
+(``claims.COMPARABLE_BC``: *equal within 0.05*); where the start sits at random's level, no
+learner has anything to start from (*not judged: start at the floor*).
 
-* **at the ceiling**: the BC start's mean scaled return at that count is within
-  :data:`table_three.MARGIN` (a tenth of the expert's return over random) of the expert's 1;
-* **at the random level**: it is within :data:`table_three.MARGIN` of random's 0 (or below).
+* :func:`summary` : one row per (claim, task, count): the word and, beside it, the reason
+  or the bound;
+* :func:`lines`: one Markdown line per claim, its pairs grouped by word;
+* :func:`conclusion`: the chapter's question ("does DC add to its start and match the
+  baselines on one-mode tasks?") in one paragraph.
 
-:func:`conclusion` answers the chapter's question ("does DC add to its start and match the
-baselines on one-mode tasks?") in one sentence, over the (task, count) pairs with at least
-:data:`verdict_rules.MIN_SEEDS` paired seeds, separating those where the start left room.
-``tests/test_table3.py`` checks each rule on constructed aggregates.
+``tests/test_table_three_words.py`` checks each rule on constructed aggregates.
 """
 
 from __future__ import annotations
 
-import numpy as np
+from dc_lesson.experiments import claims, table_three
+from dc_lesson.experiments import verdicts as V
 
-from dc_lesson.experiments import table_three
-from dc_lesson.experiments.verdict_rules import MIN_SEEDS, VERDICTS
-
-CEILING, RANDOM = "at the ceiling", "at the random level"
+CEILING, FLOOR = V.CEILING, V.FLOOR
 
 
 def start_levels(rec: dict) -> dict:
-    """``{(task, n_demos): CEILING | RANDOM | None}`` from the BC row's mean scaled return."""
-    out = {}
-    for r in rec["table"]:
-        if r["row"] != "bc" or r.get("scaled_return_mean") is None:
-            continue
-        m = r["scaled_return_mean"]
-        out[(r["task"], r["n_demos"])] = (CEILING if m >= 1 - table_three.MARGIN else
-                                          RANDOM if m <= table_three.MARGIN else None)
-    return out
+    """``{(task, n_demos): CEILING | FLOOR | None}`` from the BC row's mean scaled return."""
+    return {(r["task"], r["n_demos"]): V.start_gate(r["scaled_return_mean"])
+            for r in rec["table"] if r["row"] == "bc" and r.get("scaled_return_mean")
+            is not None}
 
 
 def _span(pairs: list) -> str:
@@ -49,131 +40,101 @@ def _span(pairs: list) -> str:
     return ", ".join(f"{t} ({', '.join(ns)})" for t, ns in by.items())
 
 
-def _level(levels: dict, key) -> str | None:
-    """The start's level at (task, count); for a comparison of two counts ("4 -> 25", BC's
-    growth), the level both ends share, else none: growth from the ceiling to the ceiling, or
-    within the random level, is no room used."""
-    task, n = key
-    if isinstance(n, str) and "->" in n:
-        ends = {levels.get((task, int(e))) for e in n.split("->")}
-        return ends.pop() if len(ends) == 1 else None
-    return levels.get(key)
+def _split(word: str) -> tuple[str, str]:
+    """A rendered word as (the vocabulary's word, what stands beside it)."""
+    k = V.kind(word)
+    if k == V.NOT_JUDGED:
+        return k, word.split(": ", 1)[1]
+    if k == V.EQUAL:
+        return k, f"bound {word[len(V.EQUAL):].strip()}"
+    return k, ""
 
 
-def claim_line(rec: dict, claim: str, verdicts: list | None = None) -> str:
-    """One Markdown line: the claim's verdicts over its (task, count) pairs, grouped by
-    verdict, the pairs with too few seeds apart and the start's level beside each group."""
-    levels = start_levels(rec)
-    rows = [v for v in (verdicts if verdicts is not None else table_three.verdicts(rec))
-            if v["claim"] == claim]
-    groups: dict = {w: [] for w in VERDICTS}
-    few = []
-    for v in rows:
-        for task, word, _mean, _lo, _hi, n_seeds in v.get("per_task", ()):
-            key = (task, v["n_demos"])
-            (few if n_seeds < MIN_SEEDS else groups[word]).append(key)
-    parts = []
-    for word in VERDICTS:
-        pairs = groups[word]
-        if not pairs:
-            continue
-        flat = [p for p in pairs if _level(levels, p)]
-        note = "; ".join(f"{lvl}: {_span([p for p in flat if _level(levels, p) == lvl])}"
-                         for lvl in (CEILING, RANDOM)
-                         if any(_level(levels, p) == lvl for p in flat))
-        parts.append(f"{word} on {_span(pairs)}" + (f" (the start {note})" if note else ""))
-    if few:
-        parts.append(f"too few paired seeds (fewer than {MIN_SEEDS}) on {_span(few)}")
-    return f"* **{claim}**: " + ("; ".join(parts) if parts else "not run yet") + "."
-
-
-def lines(rec: dict) -> list[str]:
-    """:func:`claim_line` for every claim of :data:`table_three.CLAIMS` and the
-    non-inferiority claims, in the chapter's order."""
-    vs = table_three.verdicts(rec)
-    return [claim_line(rec, c, vs) for c in
-            [c.name for c in table_three.CLAIMS] + list(table_three.NON_INFERIOR)]
-
-
-# the claim whose paired interval of dc - b per (task, count) a tally reads
-_INTERVAL_OF = {"bc": table_three.DC_BEATS_BC.name, "gail": table_three.COMPARABLE}
-
-
-def tally(rec: dict, b: str = "bc", verdicts: list | None = None) -> dict:
-    """Per (task, count) with at least ``MIN_SEEDS`` paired seeds: ``above`` / ``below`` /
-    ``same`` (the paired 95% interval of dc - b, read from the verdict that computed it, above
-    zero, below zero, or across it) and whether DC stays within the margin (``kept``: the
-    interval lies above -MARGIN) or surely loses more than it (``lost``: the interval lies
-    below -MARGIN), with the start's level."""
-    levels = start_levels(rec)
-    out: dict = {}
-    for v in (verdicts if verdicts is not None else table_three.verdicts(rec)):
-        if v["claim"] != _INTERVAL_OF[b]:
-            continue
-        for task, _word, mean, lo, hi, n_seeds in v["per_task"]:
-            if n_seeds < MIN_SEEDS or not (np.isfinite(lo) and np.isfinite(hi)):
-                continue
-            side = "above" if lo > 0 else ("below" if hi < 0 else "same")
-            out[(task, v["n_demos"])] = {"level": levels.get((task, v["n_demos"])),
-                                         "side": side, "kept": lo > -table_three.MARGIN,
-                                         "lost": hi < -table_three.MARGIN,
-                                         "mean": mean, "lo": lo, "hi": hi}
+def summary(vs: list) -> list[dict]:
+    """One row per (claim, task, count): the word, and beside it the reason it is not judged
+    (or the equivalence bound), the difference and the Holm-adjusted p."""
+    out = []
+    for v in vs:
+        for e in v.per_task:
+            word, why = _split(e.word)
+            task, n = e.key
+            out.append({"claim": v.claim, "task": task, "demonstrations": n, "word": word,
+                        "reason": why, "difference": (f"{V.fmt_num(e.mean)} "
+                                                      f"[{V.fmt_num(e.lo)}, {V.fmt_num(e.hi)}]"
+                                                      if e.n >= 2 else ""),
+                        "seeds": e.n, "p (Holm)": "" if e.p_holm != e.p_holm
+                        else f"{e.p_holm:.3f}"})
     return out
 
 
-def _count(pairs: dict, side: str) -> list:
-    return [k for k, v in pairs.items() if v["side"] == side]
+def claim_line(v) -> str:
+    """One Markdown line: the claim's (task, count) pairs grouped by word, each not-judged
+    group with its reason."""
+    groups: dict = {}
+    for e in v.per_task:
+        groups.setdefault(e.word, []).append(e.key)
+    order = sorted(groups, key=lambda w: (V.WORDS.index(V.kind(w)), w))
+    parts = [f"{w} on {_span(groups[w])}" for w in order]
+    return f"* **{v.claim}**: " + ("; ".join(parts) if parts else "not run yet") + "."
 
 
-def conclusion(rec: dict) -> str:
-    """The chapter's answer in one paragraph, by a fixed rule on :func:`tally`:
+def lines(rec: dict, vs: list | None = None) -> list[str]:
+    """:func:`claim_line` for every claim of :data:`table_three.CLAIMS`, in order."""
+    return [claim_line(v) for v in (vs if vs is not None else table_three.verdicts(rec))]
 
-    * where the start left room (neither at the ceiling nor at the random level): on how
-      many (task, count) pairs DC's return is above, below or indistinguishable from its BC
-      start's, and from GAIL's;
-    * at the ceiling: on how many pairs DC keeps the start's return (its paired interval
-      above -MARGIN), on which it loses more than the margin (the interval below -MARGIN),
-      and on which the interval is too wide to tell (it straddles -MARGIN);
-    * at the random level: that no learner has anything to start from;
-    * with no pair of enough seeds: no answer yet.
+
+def _words(v) -> dict:
+    return {e.key: V.kind(e.word) for e in v.per_task}
+
+
+def conclusion(rec: dict, vs: list | None = None) -> str:
+    """The chapter's answer in one paragraph, by a fixed rule on the verdicts:
+
+    * where the start left room (DC against BC judged): on how many pairs DC's return is above
+      its start's (*reproduced*), below (*contradicted*), equal within the bound, or
+      inconclusive; and against GAIL (``claims.COMPARABLE``) on the same pairs;
+    * at the ceiling: on how many pairs DC keeps the start's return (*equal within*), loses
+      more than the bound (*contradicted*), or cannot be told;
+    * at the floor: that no learner has anything to start from;
+    * with no pair judged: no answer yet.
     """
-    vs = table_three.verdicts(rec)
-    t_bc, t_gail = tally(rec, "bc", vs), tally(rec, "gail", vs)
-    if not t_bc:
-        return (f"No (task, demonstration count) pair has {MIN_SEEDS} paired seeds of DC and "
-                f"its BC start yet, so the benchmark cannot answer yet.")
-    room = {k: v for k, v in t_bc.items() if v["level"] is None}
-    ceil = {k: v for k, v in t_bc.items() if v["level"] == CEILING}
-    rand = {k: v for k, v in t_bc.items() if v["level"] == RANDOM}
+    vs = vs if vs is not None else table_three.verdicts(rec)
+    by = {v.claim: v for v in vs}
+    if claims.DC_BEATS_BC.name not in by:
+        return "The benchmark has no paired DC and BC seeds yet, so it cannot answer yet."
+    beats, keeps = _words(by[claims.DC_BEATS_BC.name]), _words(by[claims.COMPARABLE_BC.name])
+    gail = _words(by[claims.COMPARABLE.name])
+    levels = start_levels(rec)
+    room = sorted(k for k, w in beats.items() if w != V.NOT_JUDGED)
+    ceil = sorted(k for k in keeps if levels.get(k) == CEILING and keeps[k] != V.NOT_JUDGED)
+    floor = sorted(k for k in beats if levels.get(k) == FLOOR)
+    if not room and not ceil:
+        return (f"No (task, demonstration count) pair has {V.MIN_SEEDS} paired seeds of DC "
+                f"and its start away from the floor yet, so the benchmark cannot answer yet.")
+    n = lambda ws, keys, w: sum(ws.get(k) == w for k in keys)
     s = []
     if room:
-        up, down, same = (_count(room, w) for w in ("above", "below", "same"))
-        g = {k: v for k, v in t_gail.items() if k in room}
         s.append(f"Where the BC start leaves room ({len(room)} task-count pairs: "
-                 f"{_span(sorted(room))}), DC's return is above its start's on {len(up)}, "
-                 f"below on {len(down)} and indistinguishable on {len(same)}"
-                 + (f"; against GAIL, above on {len(_count(g, 'above'))}, below on "
-                    f"{len(_count(g, 'below'))}, indistinguishable on "
-                    f"{len(_count(g, 'same'))}" if g else "") + ".")
+                 f"{_span(room)}), DC's return is above its start's on "
+                 f"{n(beats, room, V.REPRODUCED)}, below on {n(beats, room, V.CONTRADICTED)}, "
+                 f"equal within {V.SMALLEST['scaled_return']} on {n(beats, room, V.EQUAL)} and "
+                 f"undecided on {n(beats, room, V.INCONCLUSIVE)}; against GAIL, above on "
+                 f"{n(gail, room, V.REPRODUCED)}, below on {n(gail, room, V.CONTRADICTED)}, "
+                 f"equal on {n(gail, room, V.EQUAL)}, undecided on "
+                 f"{n(gail, room, V.INCONCLUSIVE)}.")
     else:
         s.append("On no task-count pair with enough seeds does the BC start leave room: it "
                  "is at the expert's return or at random's on every one.")
     if ceil:
-        kept = [k for k, v in ceil.items() if v["kept"]]
-        lost = [k for k, v in ceil.items() if v["lost"]]
-        wide = [k for k, v in ceil.items() if not (v["kept"] or v["lost"])]
-        more = [f"loses more than that on {_span(sorted(lost))}" if lost else "",
-                f"may lose more on {_span(sorted(wide))} (intervals too wide to tell)"
-                if wide else ""]
-        more = [m for m in more if m]
-        s.append(f"Where the start already earns the expert's return ({_span(sorted(ceil))}), "
-                 f"there is nothing to add: DC keeps it within {table_three.MARGIN} on "
-                 f"{len(kept)} of {len(ceil)} pairs"
-                 + (", " + " and ".join(more) if more else "") + ".")
-    if rand:
-        s.append(f"Where the start is at the random level ({_span(sorted(rand))}), every RL "
-                 f"learner starts from nothing it can use, and none is expected to rise.")
+        s.append(f"Where the start already earns the expert's return ({_span(ceil)}), there "
+                 f"is nothing to add: DC keeps it (equal within "
+                 f"{V.SMALLEST['scaled_return']}) on {n(keeps, ceil, V.EQUAL)} of {len(ceil)} "
+                 f"pairs, surely loses more on {n(keeps, ceil, V.CONTRADICTED)} and cannot be "
+                 f"told on {n(keeps, ceil, V.INCONCLUSIVE)}.")
+    if floor:
+        s.append(f"Where the start is at the random level ({_span(floor)}), every RL learner "
+                 f"starts from nothing it can use: not judged.")
     return " ".join(s)
 
 
-__all__ = ["CEILING", "RANDOM", "claim_line", "conclusion", "lines", "start_levels", "tally"]
+__all__ = ["CEILING", "FLOOR", "claim_line", "conclusion", "lines", "start_levels", "summary"]

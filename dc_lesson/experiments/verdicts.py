@@ -120,7 +120,7 @@ def decide(test: Test, direction: int, bound: float, p: float | None = None,
     if p < ALPHA and abs(test.mean) >= bound:
         return REPRODUCED if np.sign(test.mean) == direction else CONTRADICTED
     if p_equal < ALPHA:
-        return f"{EQUAL} {bound:g}"
+        return f"{EQUAL} {bound:.2g}"
     return INCONCLUSIVE
 
 
@@ -246,11 +246,12 @@ def count(entries, unit: str = "tasks") -> str:
     """The one counter: ``reproduced`` (``(all n tasks)``) when every judged member agrees,
     else ``reproduced on k of n tasks, ...``; the members not judged named apart with their
     reasons; with Holm over n: said."""
+    if len(entries) == 1:
+        return entries[0][1]
     judged = [e for e in entries if kind(e[1]) != NOT_JUDGED]
     n = len(judged)
-    if not judged:
-        head = f"{NOT_JUDGED}" if entries else INCONCLUSIVE
-    else:
+    head = INCONCLUSIVE if not entries else ""
+    if judged:
         words = [e[1] for e in judged]
         if len(set(words)) == 1:
             head = words[0] + (f" (all {n} {unit}, Holm over {n})" if n > 1 else "")
@@ -263,8 +264,8 @@ def count(entries, unit: str = "tasks") -> str:
         if kind(e[1]) == NOT_JUDGED:
             apart.setdefault(e[1].split(": ", 1)[1], []).append(label(e[0]))
     if apart:
-        head += "; not judged on " + "; ".join(f"{', '.join(k)} ({why})"
-                                               for why, k in apart.items())
+        head += ("; " if head else "") + "not judged on " + "; ".join(
+            f"{', '.join(k)} ({why})" for why, k in apart.items())
     return head
 
 
