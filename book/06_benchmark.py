@@ -258,31 +258,43 @@ if tasks9:
 # %% [markdown]
 # ## The paper's claims, judged
 #
-# Each claim below is declared in `table_three.CLAIMS` with its measure and comparison before
-# any result is read: *reproduced* if the paired 95% interval lies on the paper's side of
-# zero, *contradicted* if on the other side, *inconclusive* if it includes zero or too few
-# seeds are paired (the least is printed below). "DC is comparable to GAIL" is a
-# non-inferiority claim with a margin declared in advance (`table_three.MARGIN`), and so is
-# the paper's summary "comparable or better performance than IL baselines", judged against
-# BC, DC's own start. A claim's verdict counts the tasks with enough paired seeds and names
-# the others apart: the planner tasks' reduced rows have one RL seed by design.
+# Each claim below is declared once in `claims` (`claims.TABLE_THREE`) with its measure and
+# comparison, and judged by the one rule of `verdicts`: a paired t-test per (task, count),
+# Holm-adjusted across the claim's pairs; *reproduced* if the difference is on the paper's
+# side and at least the smallest effect of interest (printed below), *contradicted* if on the
+# other, *equal within* the bound if the whole 95% interval lies inside it, *inconclusive*
+# otherwise, and *not judged* with its reason: too few paired seeds (the planner tasks' reduced
+# rows have one RL seed by design), or a BC start at the ceiling or the floor, where the
+# comparison cannot show what the claim asks. "Comparable" claims take *equal within* as
+# their answer. The table after the claims puts each reason beside its word.
 
 # %%
 from dc_lesson.experiments import claims as _claims_mod, table_three_words
 
-print(f"a verdict needs at least {_claims_mod.MIN_SEEDS} paired seeds")
+from dc_lesson.experiments import verdicts as _verdicts
+
+print(f"a verdict needs at least {_verdicts.MIN_SEEDS} paired seeds; smallest effect "
+      f"{_verdicts.SMALLEST['scaled_return']} scaled return; a start within "
+      f"{_verdicts.LEVEL_GAP} of the expert's 1 or random's 0 is not judged")
 if t3 is None:
     for c in table_three.CLAIMS:
         print(f"{c.name}: not run yet\n  rule: {c.rule}")
-    for name, b in table_three.NON_INFERIOR.items():
-        print(f"{name}: not run yet\n  rule: {table_three.non_inferior_rule(b)}")
 else:
-    rules = {}
-    for v in table_three.verdicts(t3):
-        rules.setdefault(v["claim"], (v["rule"], []))[1].append(
-            f"  * at {v['n_demos']} demonstrations: **{v['verdict']}**. {v['evidence']}.")
-    display(Markdown("\n".join(f"* **{c}** (rule: {r})\n" + "\n".join(b)
-                                for c, (r, b) in rules.items())))
+    t3_verdicts = table_three.verdicts(t3)
+    display(Markdown("\n".join(f"* **{v.claim}** (rule: {v.rule}): **{v.verdict}**. "
+                                f"{v.evidence}." for v in t3_verdicts)))
+    with pd.option_context("display.max_rows", 200):
+        display(pd.DataFrame(table_three_words.summary(t3_verdicts))
+                .set_index(["claim", "task", "demonstrations"]))
+
+# %% [markdown]
+# **Across tasks**, as rliable does (Agarwal et al. 2021): each learner's interquartile mean
+# over every (task, count) pair and seed where all learners ran, with its stratified bootstrap
+# interval, and the probability that a DC run beats a run of the learner on the same pair.
+
+# %%
+if t3 is not None:
+    display(pd.DataFrame(table_three.across_tasks(t3)).set_index("learner"))
 
 # %% [markdown]
 # **Orderings.** Kendall's $\tau$ between the paper's row and ours, per task and count, over
@@ -298,7 +310,7 @@ if t3 is not None:
     levels = table_three_words.start_levels(t3)
     agree = [table_three.rank_agreement(t3, t, n) for t in table_three.PAPER_TABLE_III
              for n in table_three.PAPER_TABLE_III[t]
-             if study.fresh_reference(t) and levels.get((t, n)) != table_three_words.RANDOM]
+             if study.fresh_reference(t) and levels.get((t, n)) != table_three_words.FLOOR]
     agree = [a for a in agree if a["tau"] is not None]
     if agree:
         display(pd.DataFrame(agree).round(2))
@@ -306,23 +318,19 @@ if t3 is not None:
 # %% [markdown]
 # ### So, what does the benchmark say?
 #
-# A verdict alone can mislead on this grid. Where the common BC start already earns the
-# expert's return, "DC outperforms BC" can only be contradicted or inconclusive, and a loss of
-# a thousandth of the expert's return is as *significant* as a large one when every seed
-# agrees; where the start sits at the random level, every RL learner starts from nothing it
-# can use. So the answer below is rendered by a fixed rule (`table_three_words`, declared
-# after the paired rule, which it never changes) that says beside each verdict where the
-# start left no room: *at the ceiling* when BC's mean scaled return at that count is within
-# the margin of the expert's 1, *at the random level* when within it of random's 0.
+# Where the common BC start already earns the expert's return, "DC outperforms BC" cannot be
+# shown, so it is not judged there, and what is left to ask is whether DC keeps that return
+# ("comparable to BC": *equal within* the smallest effect); where the start sits at the random
+# level, every RL learner starts from nothing it can use. The answer below groups the words
+# of the rule (`table_three_words`), never adding a word of its own.
 
 # %%
-print(f"the margin: {table_three.MARGIN} of the expert's return over random's")
 if t3 is None:
     print("not run yet: dc-lesson sweep table3 && dc-lesson aggregate table3")
 else:
-    display(Markdown(f"**The answer.** {table_three_words.conclusion(t3)}\n\n"
+    display(Markdown(f"**The answer.** {table_three_words.conclusion(t3, t3_verdicts)}\n\n"
                      "**Each claim**, by (task, demonstration count):\n\n"
-                     + "\n".join(table_three_words.lines(t3))))
+                     + "\n".join(table_three_words.lines(t3, t3_verdicts))))
 
 # %% [markdown]
 # Where the paper's means lie within one of its standard deviations of each other (Ant at 18,
@@ -482,14 +490,13 @@ abl_obs = ablations.observations(abl)
 abl_start = [o["scaled_return"] for o in abl_obs if o["row"] == "bc"]
 if abl_start:
     m = float(np.mean(abl_start))
-    at = table_three_words.CEILING if m >= 1 - table_three.MARGIN else (
-        table_three_words.RANDOM if m <= table_three.MARGIN else None)
+    at = _verdicts.start_gate(m)
     display(Markdown(
         f"Every ablation run starts from its seed's BC policy, whose mean scaled return here "
         f"is **{m:.3f}** over {len(abl_start)} seeds"
-        + (f", {at}: no learner can add to it, so \"improves with loops\", \"robust to the "
-           f"learning rate\" and \"faster\" below measure how much of the start's return a "
-           f"learner keeps, not what it adds." if at == table_three_words.CEILING else
+        + (f", {at}: no learner can add to it, so the return claims below (\"improves with "
+           f"loops\", \"robust to the learning rate\", \"faster\") are not judged, with that "
+           f"reason." if at == table_three_words.CEILING else
            f", {at}." if at else ".")))
     from dc_lesson.experiments import aggregate as _agg
     minutes = {c["row"]: c["minutes"]
@@ -682,11 +689,11 @@ book.append({"claim": _claims_mod.GAIL_COLLAPSES.name + " (hidden-coin demonstra
 book += [{"claim": v.claim, "where": v.source, "verdict": v.verdict}
          for v in _claims_mod.verdicts(actions="mean")]
 if t3 is not None:
-    book += [{"claim": v["claim"], "where": f"Table III, {v['n_demos']} demonstrations",
-              "verdict": v["verdict"]} for v in table_three.verdicts(t3)]
+    book += [{"claim": v.claim, "where": "Table III", "verdict": v.verdict}
+             for v in t3_verdicts]
 else:
-    book += [{"claim": c, "where": "Table III / Figures 9, 11", "verdict": "not run yet"}
-             for c in [c.name for c in table_three.CLAIMS] + list(table_three.NON_INFERIOR)]
+    book += [{"claim": c.name, "where": "Table III / Figures 9, 11", "verdict": "not run yet"}
+             for c in table_three.CLAIMS]
 with pd.option_context("display.max_colwidth", 90):
     display(pd.DataFrame(book).set_index("claim"))
 
