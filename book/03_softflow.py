@@ -419,7 +419,8 @@ for task in TASKS:
           f"{t['settle_steps']} on) and in transit (before); shares of the training states and "
           f"of {len(FIT_ARRAYS[f'{task}_samples_seed0_sigma_0.1'])} flow samples nearest to "
           f"each mode and within {t['at_mode_tolerance']:g} of it, read by {t['feature']}")
-    display(pd.DataFrame(rows).T.round(3))
+    # the transit row has no shares (it is no mode): a dash there, not NaN
+    display(pd.DataFrame(rows).T.round(3).astype(object).fillna("—"))
 
 fig, axes = plt.subplots(1, 3, figsize=(14, 4))
 data_xy = FIT_ARRAYS["reacher4_data_features"]
