@@ -192,13 +192,14 @@ OUTPUTS_JS = """() => Array.from(document.querySelectorAll(
 
 # What a table must not show a reader: a missing value as NaN/None/<NA>, or a value cut short
 # by pandas' display.max_colwidth (an ellipsis at its end).
-MISSING_CELLS = {"nan", "none", "<na>", "nat"}
+# (case matters: lowercase "none" is the mode-share class of episodes that arrived nowhere)
+MISSING_CELLS = {"NaN", "nan", "None", "<NA>", "NaT"}
 MIN_DRAWN_FRACTION = 0.6   # a figure drawn at less than this of its width has unreadable labels
 
 
 def table_problems(cells) -> list[str]:
     problems = []
-    missing = sorted({c for c in cells if c.lower() in MISSING_CELLS})
+    missing = sorted({c for c in cells if c in MISSING_CELLS})
     if missing:
         problems.append(f"a table shows missing values as {', '.join(missing)}")
     cut = [c for c in cells if c.endswith("...") or c.endswith("\u2026")]

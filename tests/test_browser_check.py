@@ -28,7 +28,7 @@ def test_a_cell_cut_by_max_colwidth_is_a_problem():
     found = bc.dom_problems([output(cells=["reproduced: dc - bc +0.12 [+0.03, +0..."])])
     assert found and "ellipsis" in found[0][1]
     assert not bc.dom_problems([output(cells=["reproduced: dc - bc +0.12 [+0.03, +0.21]",
-                                              "nanometre"])])
+                                              "nanometre", "none"])])
 
 
 def test_a_shrunken_figure_is_a_problem_and_a_fitting_one_is_not():
