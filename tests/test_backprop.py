@@ -187,6 +187,27 @@ def test_bc_step_by_hand_ends_where_autograd_ends():
     assert log_auto == log_hand
 
 
+def test_the_readers_bc_step_is_the_fast_paths_with_the_same_optimiser():
+    """``bc_step`` as read (autograd through ``bc_loss``, torch's clip, ``optimizer.step()``)
+    against the fast path (by hand, the lean step), on one fused optimiser each: the same
+    bits, with and without a gradient bound."""
+    def run(on: bool, max_norm):
+        gen = torch.Generator().manual_seed(3)
+        torch.manual_seed(0)
+        pi = _moved(GaussianPolicy(7, 2, norm_obs=True), gen, 0.2)
+        pi.update_obs_norm(torch.randn(100, 7, generator=gen))
+        with fast.on():
+            opt = fast.adamw(pi.parameters(), lr=1e-3)
+        with (fast.on() if on else contextlib.nullcontext()):
+            logs = [bc.bc_step(pi, opt, torch.randn(50, 7, generator=gen),
+                               torch.randn(50, 2, generator=gen), max_norm) for _ in range(30)]
+        return [p.detach().clone() for p in pi.parameters()], logs
+    for max_norm in (0.5, None):
+        (w_read, log_read), (w_fast, log_fast) = run(False, max_norm), run(True, max_norm)
+        assert all(torch.equal(a, b) for a, b in zip(w_read, w_fast))
+        assert log_read == log_fast
+
+
 def test_only_tanh_mlps_are_taken_by_hand():
     assert backprop.supported(GaussianPolicy(4, 2).mean_net)
     assert backprop.supported(ValueNetwork(4, (8, 8, 8)).net)

@@ -15,6 +15,9 @@ the same computations take these kernels:
 * PPO's batch normalised once per update, the Gaussian's terms without a ``Normal`` per
   minibatch: the same bits (``tests/test_ppo.py::test_the_fast_ppo_update_equals_the_
   reference_path_bit_for_bit``, ``test_log_prob_entropy_equals_torch_normal_bit_for_bit...``);
+  a whole ``ppo_update`` and ``bc_step`` on either path, given one optimiser, the same bits
+  (``tests/test_backprop.py::test_the_readers_ppo_update_is_the_fast_paths_with_the_same_
+  optimiser``, ``test_the_readers_bc_step_is_the_fast_paths_with_the_same_optimiser``);
 * the lean optimiser step, ``zero_grad`` and gradient clip (:func:`optimizer_step`,
   :func:`zero_grad`, :func:`clip_grad_norm_`): the same bits as ``optimizer.step()`` and
   ``torch.nn.utils.clip_grad_norm_`` on the same optimiser
