@@ -467,7 +467,10 @@ sweep[["dc_lesson rollout", "rollout / raw"]].round(2).T
 # to float32 rounding), the optimiser step and the gradient clip call their kernels directly,
 # and PPO's and BC's gradients are written out by hand (`nn.backprop`: the derivatives
 # autograd would take, with the same kernels). Tests hold the last two to the bits of the
-# path they replaced.
+# path they replaced. All of it sits behind one switch, `nn.fast.on()`, which the sweeps and
+# these benchmarks turn on; a chapter's own runs, and yours, take the code the algorithm
+# modules show (the loss through autograd, `optimizer.step()`, the torch modules in rollouts),
+# so a loss you edit is the loss that trains.
 
 # %%
 from dc_lesson.perf import runs as perf_runs
