@@ -84,6 +84,20 @@ class Budget:
     # evaluations at these many evenly spaced checkpoints of every run, each this many episodes.
     ablation_curve_points: int = 8
     ablation_curve_episodes: int = 5
+    # The competence gate (issue 38; ``dc-lesson sweep competence``): every RL learner from a
+    # perfect BC start (keep) and from a weak one (learn), with checkpoint curves. The learn
+    # runs go to 2M interactions: their curves choose the later grids' budgets. Cost at these
+    # sizes, from issue 38's measurements (hopper, one core, 1M interactions: GAIL 2 min, DC 3,
+    # the rest 4-7): about 7 learners x (2 x 10 x 1M + 2 x 5 x 2M) = 280M interactions, about
+    # 20-25 core-hours; `dc-lesson sweep competence --dry-run` re-estimates from its cells.
+    competence_keep_seeds: int = 10
+    competence_learn_seeds: int = 5
+    competence_keep_steps: int = 1_000_000
+    competence_learn_steps: int = 2_000_000
+    competence_weak_epochs: int = 1      # BC epochs of the weak start
+    competence_curve_points: int = 20
+    competence_curve_episodes: int = 5
+    competence_eval_episodes: int = 20
 
     def table3_steps_for(self, task: str) -> int:
         """Interactions of one RL run of the single-mode benchmark on ``task``."""
@@ -111,7 +125,11 @@ PRESETS: dict[str, Budget] = {
                     sweep_seeds_reacher=2, sweep_seeds_other=1, table3_seeds=1,
                     table3_steps=(("default", 4096),), table3_eval_episodes=2,
                     table3_curve_points=2, table3_curve_episodes=1,
-                    ablation_curve_points=2, ablation_curve_episodes=1),
+                    ablation_curve_points=2, ablation_curve_episodes=1,
+                    competence_keep_seeds=1, competence_learn_seeds=1,
+                    competence_keep_steps=2048, competence_learn_steps=2048,
+                    competence_curve_points=2, competence_curve_episodes=1,
+                    competence_eval_episodes=2),
     "lesson": Budget("lesson", tour_episodes=10, video_steps=150, bench_steps=16000,
                      bc_demo_counts=(4, 11, 18, 25), bc_seeds=(0, 1, 2, 3, 4),
                      bc_eval_episodes=50, bc_max_epochs=200, il_demos=18,

@@ -10,6 +10,7 @@
 | ``dc_lr`` | ``dc_lr.json`` | DC per learning rate and seed on hopper (11 demonstrations) |
 | ``table1`` | ``table1.json`` | every learner and control on the multi-mode tasks, both evaluations |
 | ``table3`` | ``table3.json`` | every learner on the single-mode tasks per demonstration count |
+| ``competence`` | ``competence.json`` | every RL learner from a perfect and from a weak start, with checkpoint curves: the gate a learner passes before it judges (issue 38) |
 | ``softflow_fit`` | ``softflow_fit_cells.json`` (chapter 03 reads it and the cells' arrays through ``fit_record``) | SoftFlow on the circle toy and on expert states, and each task's data and baselines |
 
 Beside them, what they are made of: ``_learners`` (the GAIL and DC cells of the hopper studies),
@@ -24,7 +25,7 @@ import importlib
 from dc_lesson.experiments.cells import Study
 
 NAMES = ("reference", "bc_demos", "bc_drift", "gail_lr", "dc_ablation", "dc_lr", "table1",
-         "table3", "softflow_fit")
+         "table3", "softflow_fit", "competence")
 
 # The grid the book reads: every study.  ``dc-lesson sweep all`` runs them in this order (the
 # reference first: the others read it), and its ``--dry-run`` ledgers them.

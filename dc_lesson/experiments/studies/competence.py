@@ -1,0 +1,197 @@
+"""Is each RL learner a competent implementation? The gate every learner passes before it
+judges a claim of the paper (issue 38; ``dc-lesson sweep competence``, ``competence.json``).
+
+Two questions, each a part of the grid, every RL learner of the book (PPO on the task's own
+reward as the RL base, then GAIL, DRIL, PWIL, NDI, GPRIL and DC), one seed's start shared by
+all of them:
+
+* **keeps a perfect start** (``part="keep"``): from the BC warm start on 4 demonstrations of
+  :data:`KEEP_TASKS` (where BC is already at the expert's level), ``competence_keep_steps``
+  interactions; the mean-action scaled return of the final policy and at
+  ``competence_curve_points`` checkpoints.  Passed when the final policy is within
+  :data:`KEEP_TOLERANCE` of its start (or above) on at least :data:`KEEP_SHARE` of the seeds of
+  every task, and no checkpoint falls more than :data:`MAX_DIP` below the start.
+* **learns** (``part="learn"``): from a *weak* start on :data:`LEARN_TASKS` (BC on the same 4
+  demonstrations stopped after ``competence_weak_epochs`` epochs: a policy that has seen the
+  demonstrations but not fitted them; chosen because the benchmark's demonstration protocol,
+  issue 41, is not settled, and because it needs no change of the demonstrations), for
+  ``competence_learn_steps`` interactions, with checkpoint curves: the learning curves that
+  set every later grid's budget.  Passed when the mean final scaled return over the seeds
+  reaches :data:`LEARN_FLOOR` on every task.  A start that is not weak (mean above
+  :data:`WEAK_CEILING`) makes the question uninformative: the gate then says so instead of
+  passing.
+
+:func:`gate` turns the aggregate into one word per learner ("passed", or "failed the
+competence gate: <why>"); :func:`competence` gives the mapping ``verdicts`` reads, so a
+comparison whose comparator failed is "not judged".  The thresholds are the issue's,
+declared before any cell ran.
+"""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+import json
+import time
+
+import numpy as np
+
+from dc_lesson import algorithms as _algorithms
+from dc_lesson import budget as _budget
+from dc_lesson import evaluation as _evaluation
+from dc_lesson.algorithms import bc as _bc
+from dc_lesson.data import store as _store
+from dc_lesson.experiments import cells, protocol
+from dc_lesson.experiments.studies import _common, _imitation as _im
+
+NAME = "competence"
+LEARNERS = ("ppo", "gail", "dril", "pwil", "ndi", "gpril", "dc")
+KEEP_TASKS = ("cartpole", "hopper")
+LEARN_TASKS = ("hopper", "halfcheetah")
+N_DEMOS = 4
+KEEP_TOLERANCE = 0.05    # final within this of the start (scaled return) ...
+KEEP_SHARE = 0.9         # ... on at least this share of the seeds
+MAX_DIP = 0.2            # and no checkpoint more than this below the start
+LEARN_FLOOR = 0.8        # mean final scaled return from the weak start
+WEAK_CEILING = 0.5       # a start above this is not weak: the learns question is uninformative
+
+
+def _steps(b, part: str) -> int:
+    return b.competence_keep_steps if part == "keep" else b.competence_learn_steps
+
+
+def learner_config(learner: str, b, part: str, seed: int):
+    sized = dataclasses.replace(b, il_steps=_steps(b, part))
+    return _algorithms.get(learner).preset(sized, seed)
+
+
+def cells_at(b) -> list[cells.Cell]:
+    out = []
+    for part, tasks, n_seeds in (("keep", KEEP_TASKS, b.competence_keep_seeds),
+                                 ("learn", LEARN_TASKS, b.competence_learn_seeds)):
+        for task in tasks:
+            for seed in range(n_seeds):
+                for learner in LEARNERS:
+                    cfg = json.loads(learner_config(learner, b, part, seed).to_json())
+                    out.append(cells.make_cell(
+                        NAME, learner, task, N_DEMOS, seed,
+                        {"budget": b.name, "part": part, "steps": _steps(b, part),
+                         "start_epochs": (b.bc_max_epochs if part == "keep"
+                                          else b.competence_weak_epochs),
+                         "eval_episodes": b.competence_eval_episodes,
+                         "eval_seed": protocol.expert_eval_seed(0),
+                         "curve_points": b.competence_curve_points,
+                         "curve_episodes": b.competence_curve_episodes,
+                         learner: _im.without_seed(cfg)}, variant=part))
+    out.sort(key=lambda c: (c.seed, c.variant, c.task))   # seed-major: every seed's rows early
+    return out
+
+
+def run_cell(cell, needs):
+    c = cell.config
+    b = _budget.get(c["budget"])
+    cfg = learner_config(cell.learner, b, c["part"], cell.seed)
+    _im.check_config(cell, json.loads(cfg.to_json()))
+    demos = _store.load_demos(cell.task, n_trajectories=cell.n_demos)
+
+    def evaluate(policy, n_episodes):   # scaled return needs no reference
+        return _evaluation.evaluate_policy(cell.task, policy, None, n_episodes=n_episodes,
+                                           seed=c["eval_seed"], divergences=False)
+
+    start = _im.cached_start(   # the seed's start, shared by the seven learners' cells
+        (cell.task, cell.n_demos, "competence", cell.seed, c["start_epochs"], False),
+        lambda: _bc.warm_start_policy(demos, cell.seed, max_epochs=c["start_epochs"]))
+    t0 = time.perf_counter()
+    curve = _evaluation.CheckpointCurve(lambda p: evaluate(p, c["curve_episodes"]),
+                                        c["steps"], c["curve_points"])
+    result = _algorithms.get(cell.learner).train(cell.task, demos, cfg,
+                                                 policy=copy.deepcopy(start), progress=False,
+                                                 callback=curve)
+    return {"start": protocol.measures_of(evaluate(start, c["eval_episodes"])),
+            "final": protocol.measures_of(evaluate(result.policy, c["eval_episodes"])),
+            "curve": curve.points, "train_seconds": time.perf_counter() - t0}, None
+
+
+# -- the gate ----------------------------------------------------------------------------------
+
+def keeps(runs: list[dict]) -> tuple[bool, str]:
+    """``runs``: one task's seeds, each ``{"start", "final", "curve"}`` scaled returns (curve:
+    a list of them). Whether the learner kept its perfect start there, and why not."""
+    if not runs:
+        return False, "no runs"
+    kept = [r["final"] >= r["start"] - KEEP_TOLERANCE for r in runs]
+    dips = [r["start"] - min(r["curve"] or [r["final"]]) for r in runs]
+    if np.mean(kept) < KEEP_SHARE:
+        return False, (f"ended more than {KEEP_TOLERANCE} below its start on "
+                       f"{len(runs) - sum(kept)} of {len(runs)} seeds")
+    if max(dips) > MAX_DIP:
+        return False, f"a checkpoint fell {max(dips):.2f} below its start"
+    return True, ""
+
+
+def learns(runs: list[dict]) -> tuple[bool | None, str]:
+    """One task's seeds from the weak start: True / False, or None when the start was not
+    weak (the question then tells nothing)."""
+    if not runs:
+        return False, "no runs"
+    start = float(np.mean([r["start"] for r in runs]))
+    if start > WEAK_CEILING:
+        return None, f"its weak start was not weak ({start:.2f} > {WEAK_CEILING})"
+    final = float(np.mean([r["final"] for r in runs]))
+    if final < LEARN_FLOOR:
+        return False, f"reached {final:.2f} from {start:.2f} (needs {LEARN_FLOOR})"
+    return True, ""
+
+
+def gate(observations: list[dict]) -> dict[str, dict]:
+    """Per learner: ``{"passed": bool | None, "reason": str, "parts": {...}}`` from the
+    aggregate's observations (None: a part is missing or uninformative, so not yet shown)."""
+    out = {}
+    for learner in LEARNERS:
+        reasons, verdicts = [], []
+        for part, tasks, rule in (("keep", KEEP_TASKS, keeps), ("learn", LEARN_TASKS, learns)):
+            for task in tasks:
+                runs = [{"start": o["start"], "final": o["final"], "curve": o["curve"]}
+                        for o in observations if o["row"] == learner and o["part"] == part
+                        and o["task"] == task]
+                ok, why = rule(runs)
+                verdicts.append(ok)
+                if ok is not True:
+                    reasons.append(f"{part} on {task}: {why}")
+        passed = (False if False in verdicts else None if None in verdicts else True)
+        out[learner] = {"passed": passed, "reason": "; ".join(reasons)}
+    return out
+
+
+def competence(aggregate: dict) -> dict[str, str]:
+    """The ``competence`` mapping for :mod:`dc_lesson.experiments.verdicts`: each learner that
+    did not pass, with the reason a "not judged" verdict prints."""
+    return {k: ("failed the competence gate: " + v["reason"] if v["passed"] is False
+                else "competence not yet shown: " + v["reason"])
+            for k, v in aggregate["gate"].items() if v["passed"] is not True}
+
+
+def aggregate(records, b) -> dict:
+    obs = []
+    for r in records:
+        cell, res = r["cell"], r["result"]
+        obs.append({"row": cell["learner"], "task": cell["task"], "seed": cell["seed"],
+                    "part": cell["variant"], "start": res["start"]["scaled_return"],
+                    "final": res["final"]["scaled_return"],
+                    "curve": [p["scaled_return"] for p in res["curve"]],
+                    "curve_steps": [p["steps"] for p in res["curve"]],
+                    "train_seconds": res["train_seconds"]})
+    return {"gate": gate(obs), "rules": {"keep_tolerance": KEEP_TOLERANCE,
+                                         "keep_share": KEEP_SHARE, "max_dip": MAX_DIP,
+                                         "learn_floor": LEARN_FLOOR,
+                                         "weak_ceiling": WEAK_CEILING},
+            "steps": {"keep": b.competence_keep_steps, "learn": b.competence_learn_steps},
+            "observations": obs}
+
+
+STUDY = cells.Study(NAME, "every RL learner keeps a perfect start and learns from a weak one",
+                    cells=cells_at, run_cell=run_cell, aggregate=aggregate,
+                    result_file="competence.json")
+
+__all__ = ["KEEP_TASKS", "LEARNERS", "LEARN_TASKS", "NAME", "STUDY", "aggregate", "cells_at",
+           "competence", "gate", "keeps", "learns", "run_cell"]

@@ -1,0 +1,82 @@
+"""The competence gate's rules on constructed runs (issue 38): what "keeps a perfect start"
+and "learns" mean, and how a failed gate reaches a verdict as "not judged"."""
+
+import pytest
+
+from dc_lesson import budget
+from dc_lesson.experiments import studies
+from dc_lesson.experiments.studies import competence as comp
+
+
+def run(start, final, curve=()):
+    return {"start": start, "final": final, "curve": list(curve)}
+
+
+def test_keeping_allows_the_tolerance_and_one_seed_in_ten():
+    ok = [run(1.0, 0.96, [0.99, 0.97])] * 9 + [run(1.0, 0.7, [0.85])]
+    assert comp.keeps(ok) == (True, "")
+    two_bad = [run(1.0, 0.96)] * 8 + [run(1.0, 0.7)] * 2
+    passed, why = comp.keeps(two_bad)
+    assert not passed and "2 of 10 seeds" in why
+
+
+def test_a_dip_below_the_start_fails_even_when_the_end_recovers():
+    runs = [run(1.0, 1.0, [1.0, 0.75, 1.0])] + [run(1.0, 1.0, [1.0])] * 9
+    passed, why = comp.keeps(runs)
+    assert not passed and "0.25 below" in why
+
+
+def test_learning_needs_the_floor_from_a_start_that_is_weak():
+    assert comp.learns([run(0.2, 0.85), run(0.1, 0.8)]) == (True, "")
+    passed, why = comp.learns([run(0.2, 0.6), run(0.3, 0.7)])
+    assert passed is False and "0.65" in why
+    # a start already near the expert says nothing about learning: neither pass nor fail
+    passed, why = comp.learns([run(0.9, 0.95)] * 5)
+    assert passed is None and "not weak" in why
+
+
+def _obs(learner, part, task, start, final, seeds, curve=None):
+    return [{"row": learner, "part": part, "task": task, "start": start, "final": final,
+             "curve": curve or [final]} for _ in range(seeds)]
+
+
+def test_the_gate_is_one_word_per_learner_with_its_reasons():
+    good = []
+    for task in comp.KEEP_TASKS:
+        good += _obs("gail", "keep", task, 1.0, 0.99, 10)
+    for task in comp.LEARN_TASKS:
+        good += _obs("gail", "learn", task, 0.2, 0.9, 5)
+    bad = [dict(o, row="ndi") for o in good]
+    bad = [dict(o, final=0.1, curve=[0.1]) if o["task"] == "cartpole" else o for o in bad]
+    g = comp.gate(good + bad)
+    assert g["gail"] == {"passed": True, "reason": ""}
+    assert g["ndi"]["passed"] is False and "keep on cartpole" in g["ndi"]["reason"]
+    assert g["dc"]["passed"] is False and "no runs" in g["dc"]["reason"]
+    mapping = comp.competence({"gate": g})
+    assert "gail" not in mapping and mapping["ndi"].startswith("failed the competence gate")
+
+
+def test_a_failed_gate_makes_a_verdict_not_judged():
+    from dc_lesson.experiments import verdicts
+    g = comp.gate(_obs("ndi", "keep", "cartpole", 1.0, 0.1, 10))
+    claim = verdicts.Claim("x", "test", "scaled_return", "dc", "ndi", 1, "constructed")
+    members = [("hopper", [0.3, 0.2, 0.4, 0.3, 0.35], 0.5, 0.0)]   # a clear difference
+    judged = verdicts.judge_family(claim, members, competence=comp.competence({"gate": g}))
+    text = repr(judged)
+    assert "not judged" in text and "competence gate" in text
+    assert "not judged" not in repr(verdicts.judge_family(claim, members))
+
+
+@pytest.mark.parametrize("name", ["smoke", "lesson", "paper"])
+def test_the_grid_has_every_learner_on_every_part_and_seed(name):
+    b = budget.get(name)
+    grid = studies.get("competence").grid(b)
+    keep = [c for c in grid if c.variant == "keep"]
+    learn = [c for c in grid if c.variant == "learn"]
+    assert len(keep) == len(comp.LEARNERS) * len(comp.KEEP_TASKS) * b.competence_keep_seeds
+    assert len(learn) == len(comp.LEARNERS) * len(comp.LEARN_TASKS) * b.competence_learn_seeds
+    assert {c.learner for c in grid} == set(comp.LEARNERS)
+    assert all(c.config["steps"] == b.competence_learn_steps for c in learn)
+    # the weak start is BC stopped early; the perfect start is BC run to its limit
+    assert {c.config["start_epochs"] for c in learn} == {b.competence_weak_epochs}
+    assert {c.config["start_epochs"] for c in keep} == {b.bc_max_epochs}
