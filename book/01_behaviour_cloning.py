@@ -53,6 +53,7 @@ from dc_lesson.viz import plots
 from dc_lesson.data import rollout
 from dc_lesson.nn.policies import GaussianPolicy
 from dc_lesson import notebook
+from dc_lesson.experiments import report
 from dc_lesson.storage import read_result
 
 BUDGET = notebook.start(
@@ -194,7 +195,8 @@ ax.plot(best, log[best - 1]["val_nll"], "o", color="tab:orange", markersize=7,
 ax.axvline(best, color="0.6", linestyle=":", linewidth=1)
 ax.set_xlabel("epoch")
 ax.set_ylabel("NLL per pair (nats)")
-ax.set_title(f"BC on {LIVE_TASK}, {N_LIVE} demonstrations, seed 0")
+ax.set_title(f"BC on {LIVE_TASK}, {N_LIVE} demonstrations, seed 0\n"
+             f"({report.live_tag(BUDGET)})", fontsize=10)
 ax.legend(frameon=False)
 fig.tight_layout()
 plt.show()
@@ -216,9 +218,17 @@ t0 = time.perf_counter()
 bc_trajs = rollout.collect(LIVE_TASK, policy, BUDGET.bc_eval_episodes, seed=EVAL_SEED)
 eval_seconds = time.perf_counter() - t0
 live_scaled, _ = metrics.scaled_return(LIVE_TASK, bc_trajs)
-print(f"BC with {N_LIVE} demonstrations on {LIVE_TASK}: return "
+print(f"BC with {N_LIVE} demonstrations on {LIVE_TASK} ({report.live_tag(BUDGET)}): return "
       f"{rollout.returns(bc_trajs).mean():.1f} over {len(bc_trajs)} episodes, scaled return "
       f"{live_scaled:.3f} (random 0, expert 1); evaluation took {eval_seconds:.1f} s")
+stored = [r for r in read_result("bc_demos.json")["summary"]
+          if r["task"] == LIVE_TASK and r["n_demos"] == N_LIVE]
+if stored:   # the same comparison in the stored cells: one seed live, many there
+    display(Markdown(
+        f"The stored cells (`bc_demos`, below) trained the same BC on {LIVE_TASK}'s realizable "
+        f"demonstrations with {N_LIVE} of them over {stored[0]['n_seeds']} seeds: scaled return "
+        f"{report.fmt_entry(stored[0], 'scaled_return', 3)} (mean and 95% t interval), "
+        f"against this one live seed's {live_scaled:.3f}."))
 
 # %% [markdown]
 # ## BC against the number of demonstrations
@@ -237,14 +247,19 @@ print(f"BC with {N_LIVE} demonstrations on {LIVE_TASK}: return "
 # (chapter 4: it picks its target from the start state), not the coin-flip ones of the live
 # run above.
 #
-# Each mean carries a 95% bootstrap interval over seeds. BC runs of one seed share their
-# initial weights and minibatch order, so 25 demonstrations against 4 is a *paired*
-# difference, and the paper's claim "BC improves with more demonstrations" is judged by the
-# book's rule: reproduced if the paired interval of (25 - 4) lies above zero, contradicted if
-# below, inconclusive if it includes zero.
+# Each mean carries its 95% t interval over seeds. BC runs of one seed share their initial
+# weights and minibatch order, so 25 demonstrations against 4 is a *paired* difference, and
+# the paper's claim "BC improves with more demonstrations" is judged by the book's one rule
+# (`experiments.verdicts`, chapter 6 tells how it was chosen): a paired t-test of the per-seed
+# differences (25 - 4), its p-values adjusted by Holm across the three tasks. *Reproduced* if
+# the difference is above zero with adjusted p < 0.05 and a mean of at least the smallest
+# effect of interest, 0.05 scaled return; *contradicted* the same below zero; *equal within
+# 0.05* if the whole 95% interval lies inside ±0.05; *inconclusive* otherwise; and *not judged*
+# (with the reason) where BC already earns the expert's return with 4 demonstrations, since
+# then more data has nothing to add.
 
 # %%
-from dc_lesson.experiments import claims, report
+from dc_lesson.experiments import claims
 
 cells_bench = read_result("bc_demos.json")
 print(f"{cells_bench['command']}: {cells_bench['cells']['n']} cells, budget "
@@ -276,9 +291,9 @@ offsets = np.linspace(-0.6, 0.6, len(bench_tasks)) if len(bench_tasks) > 1 else 
 for off, task in zip(offsets, bench_tasks):
     s = summary[summary["task"] == task]
     r = runs[runs["task"] == task]
-    mean = s["scaled_return_mean"].to_numpy()
-    lo = np.where(s["scaled_return_lo"].notna(), s["scaled_return_lo"], mean)
-    hi = np.where(s["scaled_return_hi"].notna(), s["scaled_return_hi"], mean)
+    mean, lo, hi = np.array([report.band(row, "scaled_return")
+                             for row in s.to_dict("records")]).T   # the 95% t interval
+    lo, hi = np.where(np.isfinite(lo), lo, mean), np.where(np.isfinite(hi), hi, mean)
     ax.errorbar(s["n_demos"] + off, mean, yerr=[mean - lo, hi - mean], marker="o", capsize=4,
                 color=colours[task], label=task, linewidth=1.8)
     ax.scatter(r["n_demos"] + off + 0.35, r["scaled_return"], s=12, color=colours[task],
@@ -290,7 +305,7 @@ ax.text(ax.get_xlim()[1], 0, " random", va="center", fontsize=8, color="0.4")
 ax.set_xticks(cells_bench["demo_counts"])
 ax.set_xlabel("expert demonstrations")
 ax.set_ylabel("scaled return")
-ax.set_title("BC: mean and 95% interval over seeds (dots: single seeds)", fontsize=10)
+ax.set_title("BC: mean and 95% t interval over seeds (dots: single seeds)", fontsize=10)
 ax.set_ylim(-0.3, 1.1)
 ax.legend(frameon=False, loc="lower center", ncol=len(bench_tasks))
 fig.tight_layout()
@@ -304,23 +319,22 @@ plt.show()
 
 # %%
 max_epochs = cells_bench["bc_config"]["epochs"]
-growth = {p[0]: p[1] for p in claims.bc_growth(cells_bench).per_task}   # the verdict rule
+growth = {e.key: e for e in claims.bc_growth(cells_bench).per_task}   # the verdict rule
 lines = []
 for task in bench_tasks:
     s = summary[summary["task"] == task].sort_values("n_demos")
     r = runs[runs["task"] == task]
     means = s["scaled_return_mean"].tolist()
-    pair = next(p for p in cells_bench["paired"] if p["task"] == task)
-    d = pair["scaled_return"]
-    word = growth[task]
+    e = growth[task]      # the rule's paired t interval and its word (Holm over the tasks)
     at_limit = r.groupby("n_demos")["epochs_run"].apply(lambda e: int((e >= max_epochs).sum()))
     lines.append(
         f"* **`{task}`**: the mean scaled return {report.trend(means)} "
         f"({', '.join(f'{m:.2f}' for m in means)} with "
         f"{', '.join(str(n) for n in s['n_demos'])} demonstrations; seeds from "
         f"{r['scaled_return'].min():.2f} to {r['scaled_return'].max():.2f}); 25 minus 4, "
-        f"paired: {report.fmt(d['mean'], d['lo'], d['hi'], 3)} over {pair['n_seeds']} seeds, "
-        f"**{word}**. Runs that reached the {max_epochs}-epoch limit instead of stopping "
+        f"paired: {report.fmt(e.mean, e.lo, e.hi, 3)} over {e.n} seeds"
+        + (f", Holm-adjusted p {e.p_holm:.3f}" if np.isfinite(e.p_holm) else "") +
+        f", **{e.word}**. Runs that reached the {max_epochs}-epoch limit instead of stopping "
         f"early: " + ", ".join(f"{at_limit[n]} of {(r['n_demos'] == n).sum()} at {n}"
                                for n in s["n_demos"]) + ".")
 display(Markdown("\n".join(lines)))
@@ -380,7 +394,9 @@ for task in DRIFT_TASKS:
 # its target from the start state) rather than the coin-flip ones of the live run above; where
 # an arm comes to rest, and how far that is from a demonstrated state, does not depend on how
 # the expert chose the target. Each number is the median distance over the second half of the
-# episode (mean over seeds, 95% interval); the comparison is paired by seed.
+# episode (mean over seeds, 95% t interval); the comparison is paired by seed and judged by
+# the same rule, with the fallback smallest effect 0.05 (in units of the expert's spread):
+# *reproduced* means farther from the demonstrated states with fewer demonstrations.
 
 # %%
 from dc_lesson.experiments import table_one as _t1
@@ -392,17 +408,16 @@ for task in drift_cells["tasks"]:
     few, many = drift_cells["demo_counts"][0], drift_cells["demo_counts"][-1]
     e, a, b = rows[task, "expert", 0], rows[task, "bc", few], rows[task, "bc", many]
     pair = next(p for p in drift_cells["paired"] if p["task"] == task)
-    d = pair["late_median"]
-    word = _t1.word(pair, "late_median")
     lines.append(
         f"* **`{task}`**: the expert {e['late_median_mean']:.3f}; BC with {few} demonstrations "
-        f"{report.fmt(a['late_median_mean'], a['late_median_lo'], a['late_median_hi'], 3)}"
+        f"{report.fmt_entry(a, 'late_median', 3)}"
         f" ({a['n_seeds']} seeds, from {min(a['late_median_values']):.3f} to "
         f"{max(a['late_median_values']):.3f}), with {many} "
-        f"{report.fmt(b['late_median_mean'], b['late_median_lo'], b['late_median_hi'], 3)}; "
-        f"{few} minus {many}: {report.fmt(d['mean'], d['lo'], d['hi'], 3)} over "
-        f"{pair['n_seeds']} "
-        f"paired seeds, *{'farther with fewer demonstrations' if word == 'higher' else word}*.")
+        f"{report.fmt_entry(b, 'late_median', 3)}; {few} minus {many} over "
+        f"{pair['n_seeds']} paired seeds: "
+        + _t1.said(pair, "late_median", direction=+1,
+                   better="farther with fewer demonstrations",
+                   worse="closer with fewer demonstrations") + ".")
 display(Markdown("\n".join(lines)))
 
 # %% [markdown]
@@ -499,11 +514,13 @@ else:
 
 # %%
 e = next(p for p in cells_bench["paired"] if p["task"] == LIVE_TASK)
-d = e["emd"]
+floor = next(r["emd_mean"] for r in cells_bench["expert"] if r["task"] == LIVE_TASK)
 display(Markdown(
-    f"`{LIVE_TASK}`, realizable expert: EMD with 25 minus with 4 demonstrations "
-    f"{report.fmt(d['mean'], d['lo'], d['hi'], 3)} m over {e['n_seeds']} paired seeds: "
-    f"*{table_one.word(e, 'emd')}* (lower is closer to the expert)."))
+    f"`{LIVE_TASK}`, realizable expert: EMD with 25 minus with 4 demonstrations, in metres, "
+    f"over {e['n_seeds']} paired seeds: "
+    + table_one.said(e, "emd", floor=floor, better="closer to the expert",
+                     worse="farther from the expert")
+    + f" (the smallest effect: the expert-vs-expert EMD on the task, {floor:.3f} m)."))
 
 # %% [markdown]
 # This is the gap DC's second term is meant to close: matching the *state distribution*
@@ -628,7 +645,8 @@ nll = -torch.distributions.Normal(mu, sigma).log_prob(a).sum(-1).mean()
 nll.backward()
 by_hand = (mu.detach() - a) / sigma ** 2 / len(a)      # the mean over pairs divides by N
 assert torch.allclose(mu.grad, by_hand)
-print("gradient w.r.t. the mean:", mu.grad.numpy().round(3).tolist())
+print("gradient w.r.t. the mean:", "; ".join(", ".join(f"{v:+.3f}" for v in row)
+                                              for row in mu.grad.tolist()))
 
 # %%
 # Exercise 2: a single Gaussian fitted to a coin-flip expert. The state carries no

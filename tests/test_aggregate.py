@@ -52,8 +52,8 @@ def test_an_incomplete_grid_is_refused_with_the_command(tmp_path):
 def test_report_renders_from_an_aggregate():
     agg = {"summary": aggregate.table(_obs(), measures=("emd",))}
     r = report.row(agg, row="dc", task="t")
-    assert report.fmt_entry(r, "emd", 3) == (f"{r['emd_mean']:.3f} [{r['emd_lo']:.3f}, "
-                                             f"{r['emd_hi']:.3f}]")
+    m, lo, hi = report.t_interval(r["emd_values"])     # the verdict rule's t interval
+    assert report.fmt_entry(r, "emd", 3) == f"{m:.3f} [{lo:.3f}, {hi:.3f}]"
     assert report.fmt(0.5, float("nan"), float("nan")) == "0.50"
     with pytest.raises(report.ReportError, match="exactly one"):
         report.row(agg, task="t")

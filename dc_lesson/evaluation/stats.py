@@ -1,5 +1,13 @@
 """Intervals over seeds: what a handful of training runs can and cannot tell apart.
 
+**Not the verdict basis.**  Every word the book says about a comparison (reproduced,
+contradicted, equal within B, inconclusive, not judged) and every interval printed beside
+such a word comes from :mod:`dc_lesson.experiments.verdicts`: the paired **t** interval and
+t-test, Holm across tasks, the smallest effect of interest.  The bootstrap intervals here are
+what the aggregates store beside each row (kept for provenance) and what rliable's across-task
+IQM uses; the chapters render a row's interval as the t interval of its per-seed values
+(``report.fmt_entry``), so one kind of interval is printed throughout.
+
 * :func:`mean_ci`: the mean over seeds and its 95% bootstrap interval (BCa, from
   ``scipy.stats.bootstrap``; percentile when BCa cannot be computed, e.g. two seeds or all values
   equal).  With one seed there is no interval (``lo = hi = nan``).
@@ -17,8 +25,10 @@
 
 The bootstrap under-covers with few seeds: on normal data, measured over 1000 samples (2000
 resamples each), the 95% BCa interval covered the true mean 0.86 of the time with 5 values, 0.90
-with 10 and 0.93 with 20.  An "inconclusive" verdict is therefore the safe side of the rule only
-up to that: with 5 seeds about one interval in seven misses.
+with 10 and 0.93 with 20: with 5 seeds about one interval in seven misses.  This
+under-coverage is why the verdict rule left the bootstrap for the t-test (its false-positive
+rate on null differences, measured in ``tests/test_verdicts.py``, was 0.10-0.25 against the
+t-test's at most 0.06).
 
 Every bootstrap draws from a generator seeded by ``seed`` (default 0): the same numbers give the
 same interval.  ``n_resamples`` is 9999 by default (scipy's), 2000 for the stratified IQM.

@@ -161,7 +161,7 @@ def verdicts(recs: dict | None = None, competence: dict | None = None) -> list:
 def rows_table(recs: dict, rows=None) -> list[dict]:
     """Per row: seeds, final scaled return (mean and 95% interval), interactions per run and
     (DC's rows) iterations per loop."""
-    from dc_lesson.experiments.report import fmt
+    from dc_lesson.experiments.report import fmt_entry
     out = []
     for rec in recs.values():
         steps, per_loop = {}, {}
@@ -176,8 +176,7 @@ def rows_table(recs: dict, rows=None) -> list[dict]:
             if r["task"] != TASK or (rows and r["row"] not in rows) or r["row"] == "expert":
                 continue
             out.append({"row": r["row"], "seeds": r["n_seeds"],
-                        "scaled return": fmt(r["scaled_return_mean"], r["scaled_return_lo"],
-                                             r["scaled_return_hi"], 2),
+                        "scaled return": fmt_entry(r, "scaled_return", 2),
                         "interactions": (f"{max(steps[r['row']]):,}" if r["row"] in steps
                                          else "-"),
                         "iterations per loop": per_loop.get(r["row"], "-")})
@@ -190,15 +189,16 @@ def rows_table(recs: dict, rows=None) -> list[dict]:
 
 
 def lr_lines(recs: dict) -> dict:
-    """``{learner: (rates, mean, lo, hi)}`` of the final scaled return against the rate."""
+    """``{learner: (rates, mean, lo, hi)}`` of the final scaled return against the rate (the
+    95% t interval over seeds, :func:`report.band`)."""
+    from dc_lesson.experiments.report import band
     out = {}
     for key, learner in (("dc_lr", "dc"), ("gail_lr", "gail")):
         rows = sorted((lr_of(r["row"]), r) for r in recs.get(key, {}).get("table", [])
                       if r["row"].startswith(learner + "-lr="))
         if rows:
             out[learner] = tuple(np.array(v, float) for v in zip(*[
-                (lr, r["scaled_return_mean"], r["scaled_return_lo"], r["scaled_return_hi"])
-                for lr, r in rows]))
+                (lr, *band(r, "scaled_return")) for lr, r in rows]))
     return out
 
 

@@ -4,6 +4,7 @@ verdict, always rendered from an aggregate (``data/results/STUDY.json``), never 
     from dc_lesson.experiments import report
     report.value("bc_demos", "scaled_return", task="reacher4", n_demos=25)  # 'MEAN [LO, HI]'
     report.fmt(mean, lo, hi, digits=3)       # the same from numbers already read
+    (every interval the 95% t interval over seeds, the one the verdict rule reads)
     report.verdict(v)                        # 'VERDICT: task: dc - bc = D [LO, HI] over N ...'
 """
 
@@ -19,20 +20,40 @@ class ReportError(KeyError):
 
 
 def fmt(mean: float, lo: float | None = None, hi: float | None = None, digits: int = 2) -> str:
-    """``mean [lo, hi]``; the mean alone when there is no interval (one seed)."""
+    """``mean [lo, hi]``; the mean alone when there is no interval (one seed) or when the
+    interval rounds to one number (every seed the same: no ``1.10 [1.10, 1.10]``)."""
     if lo is None or hi is None or not (math.isfinite(lo) and math.isfinite(hi)):
+        return f"{mean:.{digits}f}"
+    if f"{lo:.{digits}f}" == f"{hi:.{digits}f}":
         return f"{mean:.{digits}f}"
     return f"{mean:.{digits}f} [{lo:.{digits}f}, {hi:.{digits}f}]"
 
 
-def fmt_entry(entry: dict, measure: str, digits: int = 2) -> str:
-    """One measure of an aggregate table row (``{m}_mean``, ``{m}_lo``, ``{m}_hi``) or of a
-    paired entry (``{m}: {mean, lo, hi}``)."""
+def t_interval(values) -> tuple[float, float, float]:
+    """``(mean, lo, hi)``: the 95% t interval of the mean of ``values`` (per-seed values of a
+    row, or per-seed paired differences): the interval :mod:`verdicts`' rule uses."""
+    from dc_lesson.experiments.verdicts import paired_t
+    t = paired_t(values)
+    return t.mean, t.lo, t.hi
+
+
+def band(entry: dict, measure: str) -> tuple[float, float, float]:
+    """``(mean, lo, hi)`` of one measure of an aggregate table row or of a paired entry: the
+    95% t interval over seeds (:func:`t_interval`) of the row's ``{m}_values`` or the paired
+    entry's ``{m}_diffs``, the interval the verdict rule reads.  An entry without its per-seed
+    values falls back to the stored ``{m}_lo``, ``{m}_hi`` (or ``{m}: {lo, hi}``)."""
+    per_seed = entry.get(f"{measure}_diffs", entry.get(f"{measure}_values"))
+    if per_seed is not None and len(per_seed):
+        return t_interval(per_seed)
     if isinstance(entry.get(measure), dict):
         d = entry[measure]
-        return fmt(d["mean"], d["lo"], d["hi"], digits)
-    return fmt(entry[f"{measure}_mean"], entry.get(f"{measure}_lo"),
-               entry.get(f"{measure}_hi"), digits)
+        return d["mean"], d["lo"], d["hi"]
+    return entry[f"{measure}_mean"], entry.get(f"{measure}_lo"), entry.get(f"{measure}_hi")
+
+
+def fmt_entry(entry: dict, measure: str, digits: int = 2) -> str:
+    """:func:`band` as ``mean [lo, hi]``."""
+    return fmt(*band(entry, measure), digits)
 
 
 def row(aggregate: dict | str, table: str = "summary", **match) -> dict:
@@ -82,9 +103,16 @@ def favourites(names) -> str:
                                                                   for n in order)
 
 
+def live_tag(b) -> str:
+    """What a live result's title or caption carries: ``smoke budget: numbers meaningless`` at
+    the smoke budget, else the budget's name (``lesson budget``).  ``b``: a ``budget.Budget``."""
+    return "smoke budget: numbers meaningless" if b.is_smoke else f"{b.name} budget"
+
+
 def verdict(v) -> str:
     """A :class:`claims.Verdict` as one line: the verdict, then its intervals."""
     return f"{v.verdict}: {v.evidence}"
 
 
-__all__ = ["ReportError", "fmt", "favourites", "fmt_entry", "row", "trend", "value", "verdict"]
+__all__ = ["ReportError", "band", "fmt", "favourites", "fmt_entry", "live_tag", "row", "t_interval", "trend", "value",
+           "verdict"]

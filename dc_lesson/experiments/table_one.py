@@ -15,7 +15,7 @@ from __future__ import annotations
 import statistics
 
 from dc_lesson.evaluation import stats
-from dc_lesson.experiments import claims, verdicts as _verdicts
+from dc_lesson.experiments import claims, report, verdicts as _verdicts
 from dc_lesson.experiments.report import fmt, fmt_entry
 from dc_lesson.storage import read_result
 
@@ -103,14 +103,23 @@ def status(rec: dict) -> str:
             + (f"\n{stale}" if stale else ""))
 
 
+def tv_band(m: dict) -> tuple[float, float, float]:
+    """A row's mode TV over its seeds as ``(mean, lo, hi)``: the 95% t interval of its
+    per-seed ``tv`` values (the stored bootstrap ``tv_ci`` when they are missing)."""
+    if m.get("tv"):
+        return report.t_interval(m["tv"])
+    return m["tv_ci"]["mean"], m["tv_ci"]["lo"], m["tv_ci"]["hi"]
+
+
 def _order(row: str) -> int:
     keys = list(ROWS)
     return keys.index(row) if row in keys else len(keys)
 
 
 def table(rec: dict, actions: str = "mean", digits: int = 3) -> list[dict]:
-    """One dict per (task, row): n seeds, EMD / KL / RKL / scaled return as ``mean [lo, hi]``,
-    the TV of mode shares from the reference's (mean [lo, hi]) and the mean shares."""
+    """One dict per (task, row): n seeds, EMD / KL / RKL / scaled return as ``mean [lo, hi]``
+    (95% t intervals over seeds), the TV of mode shares from the reference's (the same) and the
+    mean shares."""
     part = rec[actions]
     tv = {(m["task"], m["row"]): m for m in part["modes"]}
     out = []
@@ -122,8 +131,7 @@ def table(rec: dict, actions: str = "mean", digits: int = 3) -> list[dict]:
                     **{label: fmt_entry(r, key, digits) for label, key in
                        (("EMD", "emd"), ("KL", "kl"), ("RKL", "rkl"),
                         ("scaled return", "scaled_return")) if f"{key}_mean" in r},
-                    "mode TV": fmt(m["tv_ci"]["mean"], m["tv_ci"]["lo"], m["tv_ci"]["hi"],
-                                   2) if m else "",
+                    "mode TV": fmt(*tv_band(m), 2) if m else "",
                     "collapsed seeds": (f"{round(m['collapsed_share'] * m['n_seeds'])}/"
                                         f"{m['n_seeds']}") if m else "",
                     "modes": ", ".join(f"{k} {v:.2f}" for k, v in
@@ -140,27 +148,34 @@ def paired(rec: dict, a: str, b: str, task: str, actions: str = "mean") -> dict 
 
 
 def word(entry: dict | None, measure: str, rec: dict | None = None,
-         actions: str = "mean") -> str:
+         actions: str = "mean", direction: int | None = None,
+         floor: float | None = None) -> str:
     """The control rule (module docstring) on one paired entry alone: is ``a`` better than
-    ``b`` on ``measure``?  ``rec``: the aggregate whose expert rows bound the divergences."""
+    ``b`` on ``measure``?  ``rec``: the aggregate whose expert rows bound the divergences;
+    ``direction``: the sign of ``a - b`` that counts as better, for a measure
+    ``verdicts.BETTER`` does not know (+1: higher); ``floor``: a divergence's expert-vs-expert
+    value when ``rec`` is not a Table I aggregate."""
     if not entry or f"{measure}_diffs" not in entry:
         return f"{_verdicts.NOT_JUDGED}: not run yet"
-    floor = claims.floors(rec, actions).get(entry["task"], {}).get(measure)
+    if floor is None:
+        floor = claims.floors(rec, actions).get(entry["task"], {}).get(measure)
     return _verdicts.word_of_diffs(entry[f"{measure}_diffs"], measure,
-                                   _verdicts.BETTER[measure], floor)
+                                   direction or _verdicts.BETTER[measure], floor)
 
 
 def said(entry: dict | None, measure: str, rec: dict | None = None,
-         actions: str = "mean") -> str:
+         actions: str = "mean", direction: int | None = None,
+         better: str = "better", worse: str = "worse", floor: float | None = None) -> str:
     """``a - b`` on ``measure`` as ``mean [lo, hi], *word*`` (the rule's t interval and its
-    word, with which row is better when it is decisive)."""
+    word, with which row is ``better`` or ``worse`` when it is decisive)."""
     if not entry or f"{measure}_diffs" not in entry:
         return f"*{word(entry, measure)}*"
     t = _verdicts.paired_t(entry[f"{measure}_diffs"])
-    band = (f" [{_verdicts.fmt_num(t.lo)}, {_verdicts.fmt_num(t.hi)}]" if t.n >= 2 else "")
-    w = word(entry, measure, rec, actions)
-    side = {_verdicts.REPRODUCED: f" ({entry['a']} better)",
-            _verdicts.CONTRADICTED: f" ({entry['a']} worse)"}.get(w, "")
+    band = (f" [{_verdicts.fmt_num(t.lo)}, {_verdicts.fmt_num(t.hi)}]"
+            if t.n >= 2 and t.lo != t.hi else "")
+    w = word(entry, measure, rec, actions, direction, floor)
+    side = {_verdicts.REPRODUCED: f" ({entry['a']} {better})",
+            _verdicts.CONTRADICTED: f" ({entry['a']} {worse})"}.get(w, "")
     return f"{_verdicts.fmt_num(t.mean)}{band}, *{w}*{side}"
 
 
@@ -295,13 +310,15 @@ def against_start(rec: dict, row: str, start: str, actions: str = "mean") -> lis
 MODE_FEATURES = (("reacher4", 4), ("reacher2", 2), ("halfcheetah2", 0))   # (task, targets)
 
 
-def coverage_figures(rec: dict, names: dict, what: str, size: float = 3.0):
+def coverage_figures(rec: dict, names: dict, what: str, size: float = 3.0,
+                     per_row: int = 4):
     """The paper's Figures 1 and 7 from the cells: for each multi-mode task, where each row of
     ``names`` (row -> label; ``"ROW:start"`` for a row's start) goes under its mean action,
     seeds pooled; the label ``"BC"`` shows the RL rows' common start (read from DC's cells).
-    Yields each figure as it is drawn (a reacher's fingertip heat maps, halfcheetah2's
-    velocity densities); tasks with fewer than two rows that have run are skipped.  ``what``
-    completes the title."""
+    Yields each figure as it is drawn (a reacher's fingertip heat maps, at most ``per_row``
+    panels a figure, so a figure stays readable at a page's width; halfcheetah2's velocity
+    densities); tasks with fewer than two rows that have run are skipped.  ``what`` completes
+    the title."""
     import matplotlib.pyplot as plt
     from dc_lesson.viz import plots
     for task, k in MODE_FEATURES:
@@ -311,12 +328,17 @@ def coverage_figures(rec: dict, names: dict, what: str, size: float = 3.0):
         feats = {n: f for n, f in feats.items() if f is not None}
         if len(feats) < 2:
             continue
-        if k:
-            plots.coverage_reacher(feats, k, size=size)
-            plt.suptitle(f"{task}: {what}", y=1.07 if size >= 3 else 1.1)
-        else:
+        if not k:
             plots.coverage_velocity(feats, title=f"{task}: forward velocity, {what}")
-        yield plt.gcf()
+            yield plt.gcf()
+            continue
+        items = list(feats.items())
+        for first in range(0, len(items), per_row):
+            plots.coverage_reacher(dict(items[first:first + per_row]), k, size=size)
+            part = (f" ({first // per_row + 1} of {-(-len(items) // per_row)})"
+                    if len(items) > per_row else "")
+            plt.suptitle(f"{task}: {what}{part}", y=1.07 if size >= 3 else 1.1)
+            yield plt.gcf()
 
 
 def summary_lines(rec: dict, actions: str = "mean") -> list[str]:
@@ -336,8 +358,8 @@ def summary_lines(rec: dict, actions: str = "mean") -> list[str]:
         if e_gail and "emd" in e_gail:
             bits.append(f"minus GAIL's {said(e_gail, 'emd', rec, actions)}")
         if m_dc and m_bc:
-            bits.append(f"mode TV from the expert's shares {fmt(m_dc['tv_ci']['mean'], m_dc['tv_ci']['lo'], m_dc['tv_ci']['hi'], 2)} "
-                        f"against the start's {fmt(m_bc['tv_ci']['mean'], m_bc['tv_ci']['lo'], m_bc['tv_ci']['hi'], 2)} "
+            bits.append(f"mode TV from the expert's shares {fmt(*tv_band(m_dc), 2)} "
+                        f"against the start's {fmt(*tv_band(m_bc), 2)} "
                         f"(multinomial floor {m_dc['tv_floor']['mean']:.2f}); collapsed seeds: "
                         f"DC {round(m_dc['collapsed_share'] * m_dc['n_seeds'])} of "
                         f"{m_dc['n_seeds']}, start {round(m_bc['collapsed_share'] * m_bc['n_seeds'])}"
@@ -372,5 +394,5 @@ def costs(rec: dict, since: str | None = None, until: str | None = None) -> list
 
 __all__ = ["CONTROLS", "PAPER_TABLE_I", "RESULT", "ROWS", "TASKS", "beside_paper", "controls",
            "against_start", "costs", "coverage_figures", "curves", "features",
-           "final_logs", "summary_lines",
+           "final_logs", "summary_lines", "tv_band",
            "load", "paired", "rank_agreement", "said", "status", "table", "word"]

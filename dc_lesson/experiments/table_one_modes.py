@@ -2,8 +2,8 @@
 ``table1`` aggregate and put into words by rules fixed before the numbers.
 
 One measure: the total-variation distance of a seed's mode shares from the expert's
-(``mode_tv``; 0 is the expert's mix, lower is better), paired by seed and warm start with a 95%
-bootstrap interval.  Several comparators, because "keeps the modes" only means something
+(``mode_tv``; 0 is the expert's mix, lower is better), paired by seed and warm start with the
+95% paired t interval the verdict rule reads.  Several comparators, because "keeps the modes" only means something
 against an alternative (:data:`COMPARATORS`):
 
 * ``bc``: DC's own start, the paper's 70/30 BC (the paper's claim is judged against it);
@@ -19,7 +19,8 @@ Each comparison's word is :mod:`verdicts`' for "DC's mode TV is lower": *reprodu
 *contradicted* (worse), *equal within 0.05*, *inconclusive* or *not judged: reason*
 (:func:`table_one_mixture.verdict` with lower-is-better).  And the floor: the expert scored like
 a learner on disjoint episodes has a mode TV of its own (finite episodes); DC is *above the
-expert's* on a task when DC's interval lies wholly above the expert's (unpaired, so cautious),
+expert's* on a task when DC's 95% t interval lies wholly above the expert's (unpaired, so
+cautious),
 else *not distinguished from the expert's*.  A comparator most of whose episodes arrive at no
 mode (``none`` >= :data:`LOW_BAR` on a task: an exploring start's sampled actions, say) is
 flagged beside its word: a lower mode TV than a policy that reaches nothing is a low bar.
@@ -30,8 +31,8 @@ flagged beside its word: a lower mode TV than a policy that reaches nothing is a
 
 from __future__ import annotations
 
-from dc_lesson.experiments.report import fmt
-from dc_lesson.experiments.table_one import TASKS, paired
+from dc_lesson.experiments.report import fmt, fmt_entry
+from dc_lesson.experiments.table_one import TASKS, paired, tv_band
 from dc_lesson.experiments import verdicts as V
 from dc_lesson.experiments.table_one_mixture import count_words, verdict
 
@@ -67,7 +68,7 @@ def _none(rec: dict, task: str, row: str, actions: str) -> float:
 def best_bc(rec: dict, task: str, actions: str = "mean") -> str | None:
     """Of :data:`BCS`, the row with the lower mean mode TV on ``task`` (None if neither ran)."""
     got = {r: _tv(rec, task, r, actions) for r in BCS}
-    got = {r: m["tv_ci"]["mean"] for r, m in got.items() if m}
+    got = {r: tv_band(m)[0] for r, m in got.items() if m}
     return min(got, key=got.get) if got else None
 
 
@@ -84,14 +85,15 @@ def against(rec: dict, actions: str = "mean") -> dict:
 
 
 def floor(rec: dict, actions: str = "mean") -> dict:
-    """``{task: (word, dc's tv_ci, the expert's tv_ci)}`` for the tasks where both ran."""
+    """``{task: (word, dc's (mean, lo, hi), the expert's)}`` for the tasks where both ran
+    (:func:`table_one.tv_band`)."""
     out = {}
     for task in TASKS:
         dc, ex = _tv(rec, task, "dc", actions), _tv(rec, task, "expert", actions)
         if not dc or not ex:
             continue
-        d, x = dc["tv_ci"], ex["tv_ci"]
-        above = d["lo"] is not None and x["hi"] is not None and d["lo"] > x["hi"]
+        d, x = tv_band(dc), tv_band(ex)     # (mean, lo, hi): 95% t intervals over seeds
+        above = d[1] is not None and x[2] is not None and d[1] > x[2]
         out[task] = ("above the expert's" if above else "not distinguished from the expert's",
                      d, x)
     return out
@@ -113,7 +115,7 @@ def lines(rec: dict, actions: str = "mean") -> list[str]:
     out = []
     for comp, what in COMPARATORS:
         per = a[comp]
-        diffs = ", ".join(f"{t} {fmt(e['mode_tv']['mean'], e['mode_tv']['lo'], e['mode_tv']['hi'], 2)}"
+        diffs = ", ".join(f"{t} {fmt_entry(e, 'mode_tv', 2)}"
                           + (f" vs `{row}`" if comp == BEST_BC else "")
                           for t, (row, _, e) in per.items() if e and "mode_tv" in e)
         if comp == "bc" and actions == "sampled":
@@ -128,8 +130,8 @@ def lines(rec: dict, actions: str = "mean") -> list[str]:
     if fl:
         out.append("* against **the expert scored like a learner** (its own mode TV over "
                    "finite episodes): " + "; ".join(
-                       f"{t} {w} (DC {fmt(d['mean'], d['lo'], d['hi'], 2)}, expert "
-                       f"{fmt(x['mean'], x['lo'], x['hi'], 2)})" for t, (w, d, x) in fl.items())
+                       f"{t} {w} (DC {fmt(*d, 2)}, expert {fmt(*x, 2)})"
+                       for t, (w, d, x) in fl.items())
                    + ".")
     return out
 

@@ -25,7 +25,7 @@ import numpy as np
 from dc_lesson.evaluation import stats
 from dc_lesson.experiments import ablations as _ablations, claims as _claims
 from dc_lesson.experiments import verdicts as _verdicts
-from dc_lesson.experiments.report import fmt
+from dc_lesson.experiments.report import band, fmt, fmt_entry
 from dc_lesson.storage import read_result
 
 kendall_tau = stats.kendall_tau   # the chapter's name for it
@@ -150,8 +150,7 @@ def table(rec: dict, measure: str = "scaled_return") -> list[dict]:
         if f"{measure}_mean" not in r:
             continue
         out.append({"task": r["task"], "n_demos": r["n_demos"], "row": r["row"],
-                    measure: fmt(r[f"{measure}_mean"], r[f"{measure}_lo"],
-                                 r[f"{measure}_hi"], 2),
+                    measure: fmt_entry(r, measure, 2),
                     "seeds": r["n_seeds"]})
     return out
 
@@ -161,8 +160,7 @@ def figure9(rec: dict, task: str, measure: str = "scaled_return") -> dict:
     lines: dict = {}
     for r in sorted(rec["table"], key=lambda r: r["n_demos"]):
         if r["task"] == task and f"{measure}_mean" in r:
-            lines.setdefault(r["row"], []).append(
-                (r["n_demos"], r[f"{measure}_mean"], r[f"{measure}_lo"], r[f"{measure}_hi"]))
+            lines.setdefault(r["row"], []).append((r["n_demos"], *band(r, measure)))
     return {k: tuple(np.array(v, float).T) for k, v in lines.items()}
 
 
