@@ -80,3 +80,41 @@ def test_the_grid_has_every_learner_on_every_part_and_seed(name):
     # the weak start is BC stopped early; the perfect start is BC run to its limit
     assert {c.config["start_epochs"] for c in learn} == {b.competence_weak_epochs}
     assert {c.config["start_epochs"] for c in keep} == {b.bc_max_epochs}
+
+
+# -- the gate's first question run for real, small enough for CI -------------------------------
+# Every registered RL learner from the same perfect cartpole BC start (4 demonstrations) for
+# the smoke budget's interactions, on 3 seeds. Kept: the one-sided 95% upper bound of the mean
+# drop (paired t, 2 degrees of freedom) below KEEP_TOLERANCE. Measured when the test was
+# written (December 2026, smoke, 1 seed): GAIL and DRIL keep 1.00; PPO ends at -0.18, PWIL
+# 0.02, NDI 0.09, GPRIL -0.01 and DC 0.33: today's code fails the gate there, so those are
+# strict expected failures (a fix turns them into errors to remove the mark, as it should).
+FAILS_TODAY = {"ppo", "pwil", "ndi", "gpril", "dc"}
+SEEDS = 3
+
+
+def _drops(learner):
+    import dataclasses
+    import torch
+    torch.set_num_threads(1)
+    b = dataclasses.replace(budget.get("smoke"), competence_keep_seeds=SEEDS)
+    grid = [c for c in studies.get("competence").grid(b)
+            if c.learner == learner and c.task == "cartpole" and c.variant == "keep"]
+    assert len(grid) == SEEDS
+    out = []
+    for c in grid:
+        res, _ = comp.run_cell(c, [])
+        out.append(res["start"]["scaled_return"] - res["final"]["scaled_return"])
+    return out
+
+
+@pytest.mark.parametrize("learner", [pytest.param(
+    x, marks=pytest.mark.xfail(strict=True, reason="loses its perfect start today (issue 38)"))
+    if x in FAILS_TODAY else x for x in comp.LEARNERS])
+def test_a_learner_keeps_a_perfect_cartpole_start(learner):
+    import numpy as np
+    from scipy import stats as sstats
+    d = np.array(_drops(learner))
+    upper = d.mean() + (sstats.t.ppf(0.95, len(d) - 1) * d.std(ddof=1) / np.sqrt(len(d))
+                        if d.std(ddof=1) > 0 else 0.0)
+    assert upper < comp.KEEP_TOLERANCE, f"{learner}: drops {np.round(d, 3)}"
