@@ -319,8 +319,9 @@ plt.show()
 
 # %%
 max_epochs = cells_bench["bc_config"]["epochs"]
-growth = {e.key: e for e in claims.bc_growth(cells_bench).per_task}   # the verdict rule
-lines = []
+growth_verdict = claims.bc_growth(cells_bench)            # the verdict rule, Holm over tasks
+growth = {e.key: e for e in growth_verdict.per_task}
+lines = [f"**{growth_verdict.claim}**: {growth_verdict.verdict}. Task by task:\n"]
 for task in bench_tasks:
     s = summary[summary["task"] == task].sort_values("n_demos")
     r = runs[runs["task"] == task]

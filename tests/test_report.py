@@ -23,6 +23,31 @@ def test_fmt_drops_an_interval_that_is_not_there():
     assert report.fmt(0.5, float("nan"), 0.6, 2) == "0.50"
 
 
+def test_fmt_shows_no_degenerate_range():
+    assert report.fmt(1.1, 1.1, 1.1, 2) == "1.10"             # every seed the same
+    assert report.fmt(1.1, 1.0999, 1.1001, 2) == "1.10"       # a range that rounds to a point
+    assert report.fmt(1.1, 1.0999, 1.1001, 4) == "1.1000 [1.0999, 1.1001]"
+
+
+def test_fmt_entry_prints_the_t_interval_the_verdict_rule_reads():
+    from dc_lesson.experiments import verdicts
+    diffs = [0.3, -0.1, 0.2, 0.25, 0.05]
+    t = verdicts.paired_t(diffs)
+    paired = {"scaled_return": {"mean": 0.14, "lo": 0.0, "hi": 0.3}, "scaled_return_diffs": diffs}
+    assert report.fmt_entry(paired, "scaled_return", 3) == \
+        f"{t.mean:.3f} [{t.lo:.3f}, {t.hi:.3f}]"             # not the stored bootstrap band
+    row = {"emd_mean": 0.14, "emd_lo": 0.0, "emd_hi": 0.3, "emd_values": diffs}
+    assert report.band(row, "emd") == pytest.approx((t.mean, t.lo, t.hi))
+    assert report.fmt_entry({"emd_mean": 0.2, "emd_lo": 0.1, "emd_hi": 0.3}, "emd") == \
+        "0.20 [0.10, 0.30]"                                    # no per-seed values: stored
+
+
+def test_a_live_result_carries_its_budget():
+    from dc_lesson import budget
+    assert report.live_tag(budget.get("smoke")) == "smoke budget: numbers meaningless"
+    assert report.live_tag(budget.get("lesson")) == "lesson budget"
+
+
 def test_favourites_say_agreement_or_count_each_mode_most_first():
     assert report.favourites(["red", "red", "red"]) == "every seed favours red"
     assert report.favourites(["blue"]) == "its one seed favours blue"

@@ -160,3 +160,21 @@ def test_iqm_and_probability_of_improvement_by_their_definitions():
     one = stats.iqm_tasks({"a": [5.0, 5.0], "b": [1.0, 1.0]})
     assert one.lo == one.hi == pytest.approx(3.0)
     assert stats.probability_of_improvement({"a": [1.0]}, {"a": [0.0]}).mean == 1.0
+
+
+def test_observed_spread_is_the_median_sd_of_the_paired_differences_at_the_common_count():
+    entries = [{"scaled_return_diffs": [0.0, 0.2, 0.4, 0.6, 0.8]},        # sd 0.316
+               {"scaled_return_diffs": [0.1, 0.1, 0.1, 0.1, 0.3]},        # sd 0.089
+               {"scaled_return_diffs": [0.0, 0.1, 0.2]},                   # sd 0.1, 3 seeds
+               {"scaled_return_diffs": [0.5]}, {"emd_diffs": [1.0, 2.0]}]  # ignored
+    sd, n = v.observed_spread(entries)
+    assert n == 5 and sd == pytest.approx(0.1)
+    with pytest.raises(ValueError, match="two or more"):
+        v.observed_spread([{"scaled_return_diffs": [0.1]}])
+
+
+def test_every_measure_with_a_smallest_effect_is_in_the_chapters_table():
+    rows = {r["measure"]: r for r in v.smallest_effects()}
+    assert set(rows) == set(v.SMALLEST) | set(v.DIVERGENCES)
+    assert rows["scaled_return"]["smallest effect"] == f"{v.SMALLEST['scaled_return']:g}"
+    assert all(r["on"] for r in rows.values())

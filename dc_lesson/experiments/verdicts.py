@@ -350,6 +350,44 @@ def false_positive_rate(rule, null: str, n: int, sims: int = 4000, seed: int = 0
     return float(np.mean(rule(x)))
 
 
+# What each measure's smallest effect is on (the chapter's table of them, :func:`smallest_effects`).
+UNITS = {"scaled_return": "scaled return (random 0, expert 1)",
+         "early_return": "scaled return, mean over the first half of the interactions",
+         "worst_lr_return": "scaled return, the worst over the learning rates",
+         "curve_mean": "scaled return, mean over the checkpoints",
+         "late_spread": "std of the scaled return over the second half of the interactions",
+         "curve_spread": "std of the checkpoints' scaled return over the second half",
+         "mode_tv": "share of episodes (total variation of the mode shares)",
+         "largest_share": "share of episodes in the largest mode",
+         "log_gap_ratio": "log ratio (0.1: a change of about 10%)",
+         "log_change_ratio": "log ratio (0.1: a change of about 10%)"}
+
+
+def smallest_effects() -> list[dict]:
+    """One row per measure: its smallest effect of interest (:data:`SMALLEST`; for EMD, KL and
+    RKL the expert-vs-expert floor on the task, :data:`FALLBACK` where it is unknown) and what
+    it is measured in; rendered by the chapters, never typed."""
+    rows = [{"measure": m, "smallest effect": f"{b:g}", "on": UNITS.get(m, "")}
+            for m, b in SMALLEST.items()]
+    rows += [{"measure": m, "smallest effect": "the expert-vs-expert value on the task",
+              "on": f"the divergence's own units (where unknown: {FALLBACK:g})"}
+             for m in DIVERGENCES]
+    return rows
+
+
+def observed_spread(entries, measure: str = "scaled_return") -> tuple[float, int]:
+    """``(sd, n)``: the median standard deviation of the per-seed differences
+    (``{measure}_diffs``) over the paired ``entries`` of an aggregate that have two or more,
+    and the most common number of seeds among them: the spread at which :func:`power` says
+    what a grid can see."""
+    diffs = [e[f"{measure}_diffs"] for e in entries if len(e.get(f"{measure}_diffs") or ()) >= 2]
+    if not diffs:
+        raise ValueError(f"no paired entry has two or more {measure} differences")
+    sizes = [len(d) for d in diffs]
+    n = max(set(sizes), key=lambda k: (sizes.count(k), k))
+    return float(np.median([np.std(d, ddof=1) for d in diffs])), n
+
+
 def power(effect: float, sd: float, n: int, bound: float = SMALLEST["scaled_return"],
           sims: int = 20000, seed: int = 0) -> float:
     """The share of normal samples (mean ``effect``, sd ``sd``, ``n`` seeds) the rule calls a
