@@ -77,6 +77,14 @@ def cmd_tour(args) -> int:
 
 
 def cmd_demos(args) -> int:
+    # the stored experts and demonstrations were made on the fast path (nn.fast): the commands
+    # that regenerate them take it too, so a regenerated file is the stored one
+    from dc_lesson.nn import fast
+    with fast.on():
+        return _demos(args)
+
+
+def _demos(args) -> int:
     from dc_lesson.experts import demos
     if args.first is not None and args.stage != "eval":
         raise UsageError("--first applies to --stage eval only")
@@ -97,6 +105,12 @@ def cmd_demos(args) -> int:
 
 
 def cmd_expert(args) -> int:
+    from dc_lesson.nn import fast
+    with fast.on():   # as cmd_demos: the stored experts were trained on the fast path
+        return _expert(args)
+
+
+def _expert(args) -> int:
     from dc_lesson.data import rollout
     from dc_lesson.experts import load_expert, planner, trained
     if args.what == "eval" and (args.steps is not None or args.restart):

@@ -40,9 +40,9 @@ is another sample of the same experiment, not the fast path's numbers.
 and so do the benchmarks (``dc_lesson.perf``: each ``main``; ``perf learners`` times both
 paths).  The book's chapters, the tests, the README's library example and anyone calling
 ``train`` directly take the reader's path; they are meant to, and their numbers are the
-reader's own, not the stored cells'.  So, for now, do ``dc-lesson train``, ``dc-lesson expert
-train`` and ``dc-lesson demos``: the stored experts and demonstrations were made on the fast
-path, so one made again outside ``fast.on()`` is another sample, not the stored file.  Rollouts keep the torch modules on the reader's path
+reader's own, not the stored cells'; so does ``dc-lesson train``.  ``dc-lesson expert train``
+and ``dc-lesson demos`` turn it on (``cli/run.py``): the stored experts and demonstrations
+were made on the fast path, and a command that regenerates them must make the stored file.  Rollouts keep the torch modules on the reader's path
 too (the NumPy forward is not bit-identical, so an edited ``forward`` must show), at about
 0.4 ms more per control step.
 
