@@ -48,7 +48,7 @@ import torch
 from IPython.display import Markdown, display
 
 from dc_lesson.algorithms import bc, dc
-from dc_lesson.experiments import claims, report
+from dc_lesson.experiments import claims, report, table_one
 from dc_lesson import evaluation, notebook
 from dc_lesson.viz import plots
 from dc_lesson.storage import read_result
@@ -189,7 +189,7 @@ choices = pd.DataFrame([
     ("how a policy is evaluated", "both: mean action and sampled actions",
      "Eq. 2 is about the stochastic policy; mode shares can differ between the two"),
 ], columns=["open question", "our default", "why"]).set_index("open question")
-with pd.option_context("display.max_colwidth", 120):
+with pd.option_context("display.max_colwidth", None):
     display(choices)
 
 # %% [markdown]
@@ -221,7 +221,7 @@ print(f"BC warm start {bc_seconds:.0f} s, DC {dc_seconds:.0f} s")
 # %%
 its = [r for r in log if r["kind"] == "iteration"]
 flows = [r for r in log if r["kind"] == "flow"]
-fig, axes = plt.subplots(1, 3, figsize=(13, 3.3))
+fig, axes = plt.subplots(1, 3, figsize=(11, 3.3))
 for loop in sorted({r["loop"] for r in its}):   # one line per loop: no line across a refit
     rows = [r for r in its if r["loop"] == loop]
     steps = [r["env_steps"] for r in rows]
@@ -239,7 +239,8 @@ for ax in axes:
     ax.set_xlabel("environment steps")
     for f in flows[1:]:
         ax.axvline(f["env_steps"], color="0.6", linestyle=":", linewidth=1)
-fig.suptitle("DC live (dotted: P_ω refitted)", y=1.02)
+fig.suptitle(f"DC live on {LIVE_TASK}, seed 0 ({report.live_tag(BUDGET)}; dotted: P_ω "
+             f"refitted)", y=1.02)
 fig.tight_layout()
 plt.show()
 
@@ -257,10 +258,21 @@ for name, policy in (("BC", start), ("DC", pi)):
                                     keep_features=True)
     features[name] = ev.pop("features")
     live[name] = ev
+print(f"live, seed 0 ({report.live_tag(BUDGET)})")
 display(pd.DataFrame({n: {k: live[n][k] for k in ("scaled_return", "emd", "kl", "rkl")}
                       for n in live}).T.round(3))
 plots.coverage_reacher(features, 4)
+plt.suptitle(f"{LIVE_TASK}, live ({report.live_tag(BUDGET)})", y=1.07)
 plt.show()
+stored = table_one.load()
+pair = table_one.paired(stored, "dc", "bc", LIVE_TASK) if stored else None
+if pair:     # the same comparison in the stored Table I cells, over their seeds
+    display(Markdown(
+        f"The stored Table I cells (below) ran this comparison on {LIVE_TASK} at the full "
+        f"interactions over {pair['n_seeds']} seeds: DC minus its BC start, EMD "
+        f"{table_one.said(pair, 'emd', stored)}; scaled return "
+        f"{table_one.said(pair, 'scaled_return', stored)} (mean action, the rule's 95% t "
+        f"interval and word)."))
 
 # %% [markdown]
 # ## The first experiment: experts that flip a hidden coin
@@ -271,7 +283,7 @@ plt.show()
 # (`bc-coin`), DC from it (`dc-coin`) and GAIL from it (`gail-coin`, chapter 2's benchmark),
 # 10 seeds on the reachers and 5 on `halfcheetah2`, every policy scored as every Table I row:
 # against 25 fresh episodes of the *start-state* expert (the one reference all of Table I
-# uses; the `expert` row is that expert), mean and 95% interval over seeds, paired by seed
+# uses; the `expert` row is that expert), mean and 95% t interval over seeds, paired by seed
 # where rows share the start. The coin expert draws each target with equal probability and the
 # start-state expert's targets are near-equal over start states, so the mode shares aimed at
 # are the same in expectation; the paths differ. The table shows the mean action; Table I
@@ -288,7 +300,7 @@ if not any(r["row"] == "dc-coin" for r in coin):
           "gail-coin && dc-lesson aggregate table1 --partial")
 else:
     print(table_one.status(t1))
-    with pd.option_context("display.max_colwidth", 70, "display.width", 250):
+    with pd.option_context("display.max_colwidth", None, "display.width", 250):
         display(pd.DataFrame(coin).set_index(["task", "row"]))
     lines = table_one.against_start(t1, "dc-coin", "bc-coin")
     for task in table_one.TASKS:
@@ -296,7 +308,7 @@ else:
         if e and "emd" in e:
             lines.append(f"* `{task}`, DC against GAIL from the same coin start "
                          f"({e['n_seeds']} seeds): EMD dc-coin - gail-coin "
-                         f"{report.fmt_entry(e, 'emd', 3)}, *{table_one.word(e, 'emd')}*.")
+                         f"{table_one.said(e, 'emd', t1)}.")
     display(Markdown("\n".join(lines)))
 
 # %% [markdown]
@@ -406,8 +418,9 @@ display(pd.DataFrame(rows).fillna(""))
 # demonstrations, 300,000 interactions after the BC warm start, 50 fresh evaluation episodes
 # scored against 25 fresh expert episodes (not the training demonstrations), each policy
 # evaluated with its mean action and with sampled actions. Rows of one seed share their BC
-# start, so every comparison below is *paired by seed*, with a 95% bootstrap interval of the
-# per-seed differences. The controls isolate what each part of DC does: BC trained on all 18
+# start, so every comparison below is *paired by seed*: the 95% t interval of the per-seed
+# differences, judged by the book's one rule (chapter 6 tells how it was calibrated). The
+# controls isolate what each part of DC does: BC trained on all 18
 # demonstrations (what the RL rows see), once with early stopping on the task's 7 other
 # expert episodes (`bc-all`), once trained to a fixed budget with no early stopping
 # (`bc-full`; whether held-out early stopping costs BC anything is the `bc-full - bc-all`
@@ -433,7 +446,7 @@ else:
         frame = pd.DataFrame(table_one.table(t1, actions)).set_index(["task", "row"])
         print(f"\n{actions} action" + (" (the expert row is its mean action)"
                                         if actions == "sampled" else ""))
-        with pd.option_context("display.max_colwidth", 70, "display.width", 250,
+        with pd.option_context("display.max_colwidth", None, "display.width", 250,
                                "display.max_rows", None):
             display(frame)
 
@@ -442,11 +455,14 @@ else:
 # where imitation 1.0.1 is installed; it is not a dependency) trains imitation's own BC on
 # the same reacher4 demonstrations, copies its weights into our policy class and scores both
 # with our evaluation. Seeds of the two libraries draw different random numbers, so the
-# comparison is unpaired, and with six seeds a side an interval that includes zero does not
-# rule out a moderate shortfall of ours: read the lowest seeds beside it.
+# comparison is unpaired (Welch's t interval, not the paired rule), and with six seeds a side
+# an interval that includes zero does not rule out a moderate shortfall of ours: read the
+# lowest seeds beside it.
 
 # %%
-from dc_lesson.evaluation import stats as _stats
+from types import SimpleNamespace
+
+from scipy import stats as scipy_stats
 
 try:
     ref = read_result("imitation_reference.json")
@@ -456,13 +472,16 @@ except FileNotFoundError:
 if ref is not None:
     by = {who: [r["scaled_return"] for r in ref["rows"] if r["library"] == who]
           for who in ("imitation", "ours")}
-    d = _stats.unpaired_diff(by["ours"], by["imitation"])
+    welch = scipy_stats.ttest_ind(by["ours"], by["imitation"], equal_var=False)
+    ci = welch.confidence_interval(0.95)
+    d = SimpleNamespace(mean=np.mean(by["ours"]) - np.mean(by["imitation"]), lo=ci.low,
+                        hi=ci.high)
     display(Markdown(
         f"On `{ref['task']}` ({ref['n_demos']} demonstrations, {ref['n_episodes']} episodes, "
         f"mean action): imitation's BC {np.mean(by['imitation']):.3f} over "
         f"{len(by['imitation'])} seeds (lowest {min(by['imitation']):.3f}), ours with its "
         f"recipe {np.mean(by['ours']):.3f} (lowest {min(by['ours']):.3f}); ours minus "
-        f"imitation {d.mean:+.3f}, 95% interval [{d.lo:+.3f}, {d.hi:+.3f}]: "
+        f"imitation {d.mean:+.3f}, 95% Welch interval [{d.lo:+.3f}, {d.hi:+.3f}]: "
         + ("no difference detected." if d.lo <= 0 <= d.hi else
            ("ours is lower." if d.hi < 0 else "ours is higher."))))
 
@@ -481,10 +500,14 @@ if t1 is not None:
 # %% [markdown]
 # ### The paper's claims on Table I, and what the controls say
 #
-# Each claim's rule was declared before the numbers (`dc_lesson.experiments.claims`): one
-# primary measure, one paired comparison, and the word from the paired 95% interval:
-# *reproduced* if it excludes zero on the paper's side, *contradicted* if on the other,
-# *inconclusive* if it includes zero or rests on fewer than 5 paired seeds. Each test is
+# Each claim was declared before the numbers (`dc_lesson.experiments.claims`): one primary
+# measure, one paired comparison, and the book's one rule (`experiments.verdicts`): a paired
+# t-test per task, Holm-adjusted across the claim's three tasks. *Reproduced* if the mean
+# difference is on the paper's side with adjusted p < 0.05 and at least the smallest effect of
+# interest (0.05 scaled return or mode share; for EMD the expert-vs-expert EMD on the task);
+# *contradicted* the same on the other side; *equal within B* if the whole 95% interval lies
+# inside ±B; *inconclusive* otherwise; *not judged* (with the reason) on fewer than 5 paired
+# seeds. The verdict column counts the tasks. Each test is
 # narrower than the claim's wording, and the evidence column names it: "DC preserves all
 # modes" is DC's mode TV against its own BC start's, "the baselines" in the return claim is
 # GAIL, and "GAIL collapses" is GAIL's largest mode share against its start's. Under sampled
@@ -500,14 +523,14 @@ if t1 is not None:
     for actions in ("mean", "sampled"):
         vs = [v for v in claims.verdicts(actions=actions) if v.claim in table_claims]
         print(f"\n{actions} action")
-        with pd.option_context("display.max_colwidth", 400):
+        with pd.option_context("display.max_colwidth", None):
             display(pd.DataFrame([{"claim": v.claim, "verdict": v.verdict,
                                    "evidence": v.evidence} for v in vs]).set_index("claim"))
 
 # %% [markdown]
-# The same comparisons in words, task by task (lower EMD and lower mode TV are better; a
-# difference is *higher* or *lower* only when its paired 95% interval excludes zero over at
-# least 5 seeds):
+# The same comparisons in words, task by task, each on its own (no Holm family): lower EMD
+# and lower mode TV are better; beside each difference its 95% t interval and the rule's word,
+# *reproduced* meaning DC is better by at least the smallest effect:
 
 # %%
 if t1 is not None:
@@ -517,12 +540,14 @@ if t1 is not None:
             display(Markdown(f"**{actions} action**\n\n" + "\n".join(f"* {x}" for x in lines)))
 
 # %% [markdown]
-# The controls have no predicted sign: each says *higher*, *lower* or *no difference
-# detected* from its paired interval (`table_one.word`), on the measure named.
+# The controls ask "is `a` better than `b`?" on the measure named (lower EMD, higher scaled
+# return) and get the rule's words (`table_one.controls`, Holm across each control's three
+# tasks): *reproduced* (better), *contradicted* (worse), *equal within B*, *inconclusive*, or
+# *not judged* with its reason.
 
 # %%
 if t1 is not None:
-    with pd.option_context("display.max_colwidth", 90, "display.width", 250):
+    with pd.option_context("display.max_colwidth", None, "display.width", 250):
         display(pd.DataFrame(table_one.controls(t1)).set_index(["question", "task"]))
 
 # %% [markdown]
@@ -536,9 +561,10 @@ if t1 is not None:
 # best BC a user could have had); DC with its PPO step off, and Algorithm 2 with a
 # discriminator in place of $\log P_\omega$ (together: what the density reward adds); GAIL;
 # and the expert scored like a learner, whose own mode TV over 50 finite episodes is the
-# floor. A word is *better* or *worse* only when the paired 95% interval excludes zero over
-# at least 5 seeds; the answer sentence is a fixed rule on those words (its docstring lists
-# every outcome it can print).
+# floor. Each word is the rule's for "DC's mode TV is lower" (*reproduced*: better by at
+# least 0.05, *contradicted*: worse, *equal within 0.05*, *inconclusive*, *not judged*), with
+# DC minus the comparator's paired 95% t interval beside it; the answer sentence is a fixed
+# rule on those words (its docstring lists every outcome it can print).
 
 # %%
 from dc_lesson.experiments import table_one_modes
@@ -599,9 +625,9 @@ if t1 is not None:
 # ```
 #
 # Every comparison below is paired by seed over the mixture rows' seeds (the first 5 of each
-# task: `budget.table1_mixture_seeds`); a mixture row is *better* or *worse* only when the
-# paired 95% interval excludes zero (lower mode TV and EMD are better, higher scaled return
-# is). `bc-mix - bc-full` and `bc-mix-coin - bc-full-coin` change the policy class and
+# task: `budget.table1_mixture_seeds`), and each gets the rule's word for "the mixture row is
+# better" (lower mode TV and EMD, higher scaled return): *reproduced*, *contradicted*, *equal
+# within B*, *inconclusive* or *not judged* (fewer than 5 paired seeds). `bc-mix - bc-full` and `bc-mix-coin - bc-full-coin` change the policy class and
 # nothing else; `dc-mix - dc` changes the start too (the Gaussian DC starts from the paper's
 # 70/30 BC), so it judges the whole recipe. The start `bc-mixstart` acts like `bc-mix` under
 # the mean action (resetting the spreads moves no component's mean or weight), while its
@@ -616,7 +642,7 @@ if t1 is not None:
     for actions in ("mean", "sampled"):
         display(Markdown(f"**{actions} action**\n\n"
                          + "\n".join(table_one_mixture.lines(t1, actions))))
-    with pd.option_context("display.max_colwidth", 60, "display.width", 250):
+    with pd.option_context("display.max_colwidth", None, "display.width", 250):
         display(pd.DataFrame(table_one_mixture.table(t1, "sampled"))
                 .set_index(["demonstrations", "a - b", "task"])
                 .drop(columns="isolates"))
@@ -631,7 +657,7 @@ if t1 is not None:
     groups = {"realizable": ("expert", "bc-full", "bc-mix", "dc", "dc-mix"),
               "hidden coin": ("expert", "bc-full-coin", "bc-mix-coin", "dc-coin",
                               "dc-mix-coin")}
-    fig, axes = plt.subplots(2, 3, figsize=(13.2, 5.6), sharey=True)
+    fig, axes = plt.subplots(2, 3, figsize=(11, 6.2), sharey=True)
     for (demos, rows), line in zip(groups.items(), axes):
         for ax, task in zip(line, table_one.TASKS):
             for i, row in enumerate(rows):
@@ -645,7 +671,8 @@ if t1 is not None:
                                alpha=1.0 if j == 0 else 0.55,
                                label=mode if (i, j) == (0, 0) else None)
                         bottom += v
-            ax.set_xticks(range(len(rows)), rows, rotation=30, fontsize=8)
+            ax.set_xticks(range(len(rows)), [r.removesuffix("-coin") for r in rows],
+                          rotation=45, ha="right", fontsize=8)
             ax.set_title(f"{task}, {demos}", fontsize=10)
         line[0].set_ylabel("share of episodes")
         line[-1].legend(frameon=False, fontsize=7, loc="upper left", bbox_to_anchor=(1, 1))
@@ -656,7 +683,7 @@ if t1 is not None:
 # **Beside the paper.** The paper's Table I has BC, GAIL, DRIL, PWIL, NDI and DC. Its states
 # and divergences are on another scale (its observations, its estimator), so compare which
 # learner is lowest within a task, not the values. This is a ranking of means over the
-# paper's rows only, not a paired test: the claims above judge DC by paired intervals, and
+# paper's rows only, not a paired test: the claims above judge DC by the paired rule, and
 # rows the paper does not have (`bc-lib`, the controls) are in Table I above.
 
 # %%
@@ -694,7 +721,7 @@ def training_curves(task):
 
 
 TASKS3 = ("reacher4", "reacher2", "halfcheetah2")
-fig, axes = plt.subplots(1, 3, figsize=(13.2, 3.3))
+fig, axes = plt.subplots(1, 3, figsize=(11, 3.3))
 for ax, task in zip(axes, TASKS3):
     series, source = training_curves(task)
     for name, runs in series.items():
@@ -720,7 +747,7 @@ plt.show()
 # between π and π' before each average, and quoted in the claims table below.
 
 # %%
-fig, axes = plt.subplots(1, 3, figsize=(13.2, 3.2))
+fig, axes = plt.subplots(1, 3, figsize=(11, 3.2))
 for ax, task in zip(axes, TASKS3):
     runs = table_one.curves(t1, task, "dc")
     source = "table1"
@@ -757,7 +784,7 @@ for v in ablations.verdicts():
 
 # %%
 verdicts = pd.DataFrame([vars(v) for v in claims.verdicts()]).set_index("claim")
-with pd.option_context("display.max_colwidth", 200):
+with pd.option_context("display.max_colwidth", None):
     display(verdicts[["source", "verdict", "evidence", "rule"]])
 
 # %%

@@ -563,3 +563,19 @@ def test_the_mode_mechanism_says_what_the_ppo_step_and_the_density_add():
     s = said(0.0, 0.0)
     assert "changes the mode TV detectably on no task" in s and "in particular" not in s
     assert "a low bar on reacher4," in said(-0.2, 0.0, none=0.9)
+
+
+def test_said_judges_any_measure_with_its_direction_floor_and_the_rules_interval():
+    """``table_one.said`` on a constructed paired entry: the t interval the rule reads, the
+    word for the given direction, the divergence bound from ``floor``, and the side named."""
+    from dc_lesson.experiments import verdicts
+    far = {"task": "t", "a": "n=4", "b": "n=25", "late_median_diffs": [0.5, 0.6, 0.4, 0.55, 0.45]}
+    t = verdicts.paired_t(far["late_median_diffs"])
+    text = table_one.said(far, "late_median", direction=+1, better="farther")
+    assert text == (f"{verdicts.fmt_num(t.mean)} [{verdicts.fmt_num(t.lo)}, "
+                    f"{verdicts.fmt_num(t.hi)}], *reproduced* (n=4 farther)")
+    assert "*contradicted* (n=4 worse)" in table_one.said(far, "late_median", direction=-1)
+    small = {"task": "t", "a": "a", "b": "b", "emd_diffs": [0.01, -0.01, 0.0, 0.005, -0.005]}
+    assert table_one.word(small, "emd", floor=0.05) == "equal within 0.05"
+    assert table_one.word(small, "emd", floor=0.001) == verdicts.INCONCLUSIVE
+    assert table_one.said(None, "emd") == "*not judged: not run yet*"
