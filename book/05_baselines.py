@@ -55,6 +55,7 @@ from IPython.display import Markdown, display
 
 from dc_lesson import algorithms, data, evaluation, notebook
 from dc_lesson.algorithms import bc, dril, gpril, ndi, pwil
+from dc_lesson.experiments import report, table_one
 from dc_lesson.storage import read_result
 
 BUDGET = notebook.start(
@@ -83,6 +84,12 @@ def run_live(name: str, start=warm):
     live_seconds[name] = time.perf_counter() - t0
     live[name] = result
     return result
+
+
+def shown(log: pd.DataFrame) -> pd.DataFrame:
+    """A training log for the reader: three decimals, and a dash where an iteration has no
+    value (no episode finished in it, say) instead of NaN."""
+    return log.round(3).astype(object).where(log.notna(), "—")
 
 
 # %% [markdown]
@@ -139,9 +146,9 @@ assert abs(float((r > 0).float().mean()) - 0.98) < 0.01
 # %%
 result = run_live("dril", start=warm)
 log = pd.DataFrame(result.log)
-print(f"DRIL: {len(log)} iterations, {int(log['steps'].iloc[-1])} steps in "
+print(f"DRIL live ({report.live_tag(BUDGET)}): {len(log)} iterations, {int(log['steps'].iloc[-1])} steps in "
       f"{live_seconds['dril']:.0f} s")
-log[["steps", "reward_mean", "share_below", "bc_nll", "episode_return"]].round(3)
+shown(log[["steps", "reward_mean", "share_below", "bc_nll", "episode_return"]])
 
 # %% [markdown]
 # ## PWIL: a Wasserstein distance, one step at a time
@@ -191,9 +198,9 @@ print("rewards of the first steps:", np.round(pwil.pwil_reward(costs[:4], 12, 2)
 # %%
 result = run_live("pwil")
 log = pd.DataFrame(result.log)
-print(f"PWIL: {len(log)} iterations, {int(log['steps'].iloc[-1])} steps in "
+print(f"PWIL live ({report.live_tag(BUDGET)}): {len(log)} iterations, {int(log['steps'].iloc[-1])} steps in "
       f"{live_seconds['pwil']:.0f} s")
-log[["steps", "reward_mean", "cost_mean", "episode_return"]].round(3)
+shown(log[["steps", "reward_mean", "cost_mean", "episode_return"]])
 
 # %% [markdown]
 # ## NDI: a density of the expert, and entropy
@@ -247,9 +254,9 @@ assert abs(float(h.mean()) - exact_h) < 0.1
 # %%
 result = run_live("ndi")
 log = pd.DataFrame(result.log)
-print(f"NDI: {len(log)} iterations, {int(log['steps'].iloc[-1])} steps in "
+print(f"NDI live ({report.live_tag(BUDGET)}): {len(log)} iterations, {int(log['steps'].iloc[-1])} steps in "
       f"{live_seconds['ndi']:.0f} s (the flow's fit included)")
-log[["steps", "reward_mean", "log_q_mean", "state_entropy", "episode_return"]].round(3)
+shown(log[["steps", "reward_mean", "log_q_mean", "state_entropy", "episode_return"]])
 
 # %% [markdown]
 # ## GPRIL: predecessors of the expert's states
@@ -307,10 +314,10 @@ print(f"horizons: mean {float(j.mean()):.2f} (1/(1-γ) = 10), var {float(j.var()
 # %%
 result = run_live("gpril")
 log = pd.DataFrame(result.log)
-print(f"GPRIL: {len(log)} iterations, {int(log['steps'].iloc[-1])} steps in "
+print(f"GPRIL live ({report.live_tag(BUDGET)}): {len(log)} iterations, {int(log['steps'].iloc[-1])} steps in "
       f"{live_seconds['gpril']:.0f} s")
-log[["steps", "state_flow_nll", "action_flow_nll", "expert_nll", "predecessor_nll",
-     "log_std"]].round(3)
+shown(log[["steps", "state_flow_nll", "action_flow_nll", "expert_nll", "predecessor_nll",
+           "log_std"]])
 
 # %% [markdown]
 # ## The live runs side by side
@@ -333,9 +340,20 @@ for name, pi in (("BC", warm), *((n.upper(), r.policy) for n, r in live.items())
     rows[name] = {"scaled return": ev["scaled_return"], "EMD": ev["emd"], "KL": ev["kl"],
                   "RKL": ev["rkl"], **{f"share {k}": v for k, v in ev["mode_shares"].items()},
                   "s per 100k steps (extrapolated)": (
-                      live_seconds[name.lower()] / live[name.lower()].log[-1]["steps"] * 1e5
-                      if name != "BC" else math.nan)}
-pd.DataFrame(rows).T.round(3)
+                      f"{live_seconds[name.lower()] / live[name.lower()].log[-1]['steps'] * 1e5:.1f}"
+                      if name != "BC" else "—")}     # BC: the warm start, not timed here
+print(f"live, seed 0, {LIVE_TASK} ({report.live_tag(BUDGET)})")
+display(pd.DataFrame.from_dict(rows, orient="index").round(3))
+stored = table_one.load()
+if stored:    # the same comparisons in the stored Table I cells, over their seeds
+    said_live = [f"{n.upper()} {table_one.said(e, 'emd', stored)}" for n in live
+                 if (e := table_one.paired(stored, n, "bc", LIVE_TASK)) and "emd_diffs" in e]
+    if said_live:
+        display(Markdown(
+            f"The stored Table I cells (below) ran each of these from its BC start on "
+            f"{LIVE_TASK} at the full interactions: EMD minus the start's, the rule's 95% t "
+            f"interval and word (*reproduced*: closer to the expert than the start): "
+            + "; ".join(said_live) + "."))
 
 # %% [markdown]
 # ## What each costs
@@ -388,8 +406,11 @@ if t1 is not None:
 # The four run in chapter 4's Table I study (`dc-lesson sweep table1`: the realizable
 # multi-mode experts, 18 demonstrations, 300,000 interactions from the same BC start as GAIL
 # and DC, 10 seeds on the reachers and 5 on `halfcheetah2`, mean action). Each row is paired
-# with DC and with the BC start by seed; the paired differences carry 95% bootstrap
-# intervals. The status line says how much of the grid the table rests on.
+# with DC and with the BC start by seed; each paired difference carries its 95% t interval
+# and the word of the book's one rule for "`a` is better than `b`" (paired t-test, smallest
+# effect 0.05 scaled return or, for EMD, the expert-vs-expert EMD on the task): *reproduced*
+# (better), *contradicted* (worse), *equal within B*, *inconclusive*, or *not judged* with its
+# reason. The status line says how much of the grid the table rests on.
 
 # %%
 BASELINES = ("dril", "pwil", "ndi", "gpril")
@@ -408,9 +429,10 @@ else:
                 e = table_one.paired(t1, a, b, task)
                 if e and "emd" in e:
                     diffs.append({"task": task, "a - b": f"{a} - {b}", "seeds": e["n_seeds"],
-                                  "EMD": table_one.fmt_entry(e, "emd", 3),
-                                  "scaled return": table_one.fmt_entry(e, "scaled_return", 3),
-                                  "EMD word": table_one.word(e, "emd")})
+                                  "EMD": report.fmt_entry(e, "emd", 3),
+                                  "EMD word": table_one.word(e, "emd", t1),
+                                  "scaled return": report.fmt_entry(e, "scaled_return", 3),
+                                  "scaled return word": table_one.word(e, "scaled_return")})
     if diffs:
         display(pd.DataFrame(diffs).set_index(["task", "a - b"]))
     else:
@@ -418,8 +440,8 @@ else:
 
 # %% [markdown]
 # **The paper's GPRIL report, checked.** The paper left GPRIL out of its Table I for giving
-# "no meaningful results". Ours, per task (mean action; words by the control rule: a
-# difference is *higher* or *lower* only when its paired 95% interval excludes zero):
+# "no meaningful results". Ours, per task (mean action; each difference with its 95% t
+# interval and the rule's word for "the first row is better"):
 
 # %%
 SEVEN_ROWS = ("bc", "gail", "dc", "dril", "pwil", "ndi", "gpril")
@@ -432,10 +454,9 @@ if t1 is not None:
         if not g or not e_bc or not e_dc:
             continue
         by_emd = sorted((r for r in SEVEN_ROWS if r in mine), key=lambda r: mine[r]["emd_mean"])
-        said.append(f"* `{task}`: scaled return {table_one.fmt_entry(g, 'scaled_return', 3)}; "
-                    f"EMD minus its BC start's {table_one.fmt_entry(e_bc, 'emd', 3)} "
-                    f"(*{table_one.word(e_bc, 'emd')}*); DC's minus GPRIL's "
-                    f"{table_one.fmt_entry(e_dc, 'emd', 3)} (*{table_one.word(e_dc, 'emd')}*); "
+        said.append(f"* `{task}`: scaled return {report.fmt_entry(g, 'scaled_return', 3)}; "
+                    f"EMD minus its BC start's {table_one.said(e_bc, 'emd', t1)}; DC's minus "
+                    f"GPRIL's {table_one.said(e_dc, 'emd', t1)}; "
                     f"GPRIL's mean EMD is number {by_emd.index('gpril') + 1} of the "
                     f"{len(by_emd)} learners, lowest first.")
     display(Markdown("\n".join(said)))
@@ -467,7 +488,7 @@ if t1 is not None:
 # results"), and its divergences are on another scale, so what compares is the *order* of
 # the six learners both tables have, lowest first, and Kendall's $\tau$ between the two
 # orders (1: the same order, 0: unrelated, -1: reversed). An ordering of means says nothing
-# of which differences are real: the paired intervals above and chapter 4's verdicts do.
+# of which differences are real: the paired rule's words above and chapter 4's verdicts do.
 
 # %%
 if t1 is not None:
@@ -481,7 +502,7 @@ if t1 is not None:
                                "ours, lowest first": " < ".join(r["our_order"]),
                                "Kendall tau": round(r["tau"], 2)})
     if orders:
-        with pd.option_context("display.max_colwidth", 120):
+        with pd.option_context("display.max_colwidth", None):
             display(pd.DataFrame(orders).set_index(["task", "measure"]))
 
 # %% [markdown]
