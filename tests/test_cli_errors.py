@@ -267,3 +267,11 @@ def test_compiling_the_cheetahs_logs_no_settotalmass_warning(caplog, monkeypatch
         tasks.make("halfcheetah2")
         logging.getLogger("absl").warning("another absl warning")
     assert [r.getMessage() for r in caplog.records] == ["another absl warning"]
+
+
+@pytest.mark.parametrize("cpus", [0, -1, True, 1.5])
+def test_a_sweep_from_python_refuses_a_worker_count_that_is_not_positive(cpus):
+    from dc_lesson import budget
+    from dc_lesson.experiments import sweep
+    with pytest.raises(sweep.SweepError, match="positive whole number"):
+        sweep.start_ray(budget.get("smoke"), cpus=cpus)

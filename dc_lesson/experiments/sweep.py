@@ -309,6 +309,10 @@ def start_ray(b: _budget.Budget, *, address: str | None = None, cpus: int | None
     """A local Ray instance (``cpus`` workers, default all cores) or, with ``address``, the
     cluster there; a no-op when Ray is already running in this process.  Returns whether this
     call started it (then the sweep shuts it down)."""
+    if cpus is not None and (isinstance(cpus, bool) or not isinstance(cpus, int) or cpus < 1):
+        # 0 would be read as "not given" below and silently mean every core
+        raise SweepError(f"cpus must be a positive whole number of workers, got {cpus!r}; "
+                         "leave it out for every core")
     try:
         import ray
     except ImportError:
