@@ -783,7 +783,9 @@ for v in ablations.verdicts():
 # its row; `tests/test_claims_rules.py` checks each rule on constructed records.
 
 # %%
-verdicts = pd.DataFrame([vars(v) for v in claims.verdicts()]).set_index("claim")
+from dc_lesson.experiments import ablations
+
+verdicts = pd.DataFrame([vars(v) for v in ablations.book_verdicts()]).set_index("claim")
 with pd.option_context("display.max_colwidth", None):
     display(verdicts[["source", "verdict", "evidence", "rule"]])
 
@@ -793,7 +795,7 @@ def said(v):
 
 
 display(Markdown("In short, by their rules, on the files above (mean action for the Table I "
-                 "claims):\n\n" + "\n".join(f"* {said(v)}" for v in claims.verdicts())))
+                 "claims):\n\n" + "\n".join(f"* {said(v)}" for v in ablations.book_verdicts())))
 
 # %% [markdown]
 # ## What it took

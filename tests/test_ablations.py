@@ -159,9 +159,9 @@ def test_figure_5_and_6_claims_compare_the_default_rates_and_the_copies_gap():
 
 
 def test_stored_verdicts_take_the_ablations_from_the_hopper_studies():
-    names = {v.claim for v in claims.verdicts()}
+    names = {v.claim for v in ablations.book_verdicts()}
     assert {c.name for c in ablations.CLAIMS} <= names
-    assert len(names) == len(claims.verdicts())       # each claim judged once
+    assert len(names) == len(ablations.book_verdicts())       # each claim judged once
 
 
 def test_the_worker_cache_keeps_a_few_seeds_and_drops_the_oldest():

@@ -96,7 +96,8 @@ def test_every_claim_declares_one_measure_one_comparison_and_a_reason():
 
 
 def test_the_stored_results_give_a_verdict_per_claim_in_the_one_vocabulary():
-    vs = claims.verdicts()
+    from dc_lesson.experiments import ablations
+    vs = ablations.book_verdicts()
     assert len({v.claim for v in vs}) == len(vs)
     for v in vs:
         assert all(verdicts.kind(p[1]) in verdicts.WORDS for p in v.per_task), v.claim

@@ -135,6 +135,13 @@ def at_default_lr(obs) -> list[dict]:
     return out
 
 
+def book_verdicts(actions: str = "mean", competence: dict | None = None) -> list:
+    """Table I's claims on the stored aggregate (:func:`claims.verdicts`) followed by the
+    hopper ablations' (:func:`verdicts`): every stored verdict of chapters 04 and 06."""
+    return (_claims.verdicts(actions=actions, competence=competence)
+            + verdicts(competence=competence))
+
+
 def verdicts(recs: dict | None = None, competence: dict | None = None) -> list:
     """Each claim of :data:`claims.ABLATIONS`, judged on the stored aggregates (or ``recs``);
     one task, so each is its own family."""
@@ -219,5 +226,5 @@ def gap_traces(obs, row: str = "dc", key: str = "pi_pi_prime_l1") -> list[np.nda
             for o in obs if o["row"] == row and key in (o.get("curve") or {})]
 
 
-__all__ = ["CLAIMS", "at_default_lr", "early_return", "eval_curves", "gap_traces", "late_spread", "load",
+__all__ = ["book_verdicts", "CLAIMS", "at_default_lr", "early_return", "eval_curves", "gap_traces", "late_spread", "load",
            "log_gap_ratio", "lr_lines", "observations", "rows_table", "verdicts", "worst_lr"]

@@ -245,8 +245,9 @@ def verdicts(obs=None, reference_shares=None, source: str = "", eval_episodes: i
              actions: str = "mean", competence: dict | None = None,
              floor: dict | None = None) -> list[Verdict]:
     """Table I's four claims (:data:`TABLE_ONE`), judged; from the stored ``table1``
-    aggregate (its ``actions`` evaluation) by default, followed by the hopper ablations'
-    (:func:`ablations.verdicts`).  Given ``obs``, the four are judged on those alone."""
+    aggregate (its ``actions`` evaluation) by default, or on ``obs``.  The hopper ablations'
+    are :func:`ablations.verdicts`; both together: :func:`ablations.book_verdicts` (one
+    module up, since the ablations read their claims from here)."""
     stored = obs is None
     if stored:
         t1 = table1_observations(actions)
@@ -269,9 +270,6 @@ def verdicts(obs=None, reference_shares=None, source: str = "", eval_episodes: i
         v = judge_claim(claim, obs, multi, measure=measure, note=source, **kw)
         ev = _mode_evidence(obs, rows, reference_shares, eval_episodes)
         out.append(dataclasses.replace(v, evidence=v.evidence + "; " + ev))
-    if stored:   # the ablations (Figures 3-6) are the hopper studies' own (chapter 06)
-        from dc_lesson.experiments import ablations
-        out += ablations.verdicts(competence=competence)
     return out
 
 
