@@ -208,11 +208,9 @@ print("replay identical:", np.array_equal(obs, traj.observations)
 # come from whatever method reaches a competent policy on a laptop CPU, and the
 # demonstrations' manifest, `data/demos/manifest.json`, records for each task how its expert
 # was made, the return of 50 expert episodes and 50 random ones (the two ends of the
-# *scaled return*: expert 1, random 0; the expert's 50 are fresh episodes, except for a
-# planner, which costs minutes per episode: its 25 demonstrations and 25 more), how the 25
-# stored demonstrations spread over the
-# task's modes, and the command and revision that made them. `dc-lesson demos --task NAME`
-# regenerates a task's file.
+# *scaled return*: expert 1, random 0; the expert's 50 are fresh episodes), how the 25
+# stored demonstrations spread over the task's modes, and the command and revision that
+# made them. `dc-lesson demos --task NAME` regenerates a task's file.
 #
 # * `cartpole`: a linear-quadratic regulator about the upright position, its cost read off
 #   the task's reward. Not a learned policy, and nearly perfect.
@@ -233,31 +231,24 @@ print("replay identical:", np.array_equal(obs, traj.observations)
 #   start states, so each runs about half the episodes; `halfcheetah2-coin` flips a coin). The hopper's PPO trains as Gym's does, with a
 #   fallen hopper ending its training episode (`PPOConfig(terminate="hopper-fall")`, for
 #   training only: the task itself never ends early).
-# * `walker`, `ant` and `humanoid`: no policy at all, but a **planner on the true
-#   simulator**. Predictive sampling (the simplest planner of MuJoCo MPC) keeps a plan of
-#   actions for the next half second (a whole second for the ant) and, at every control
-#   step, tries noisy variants of it (63 for the walker and the ant, 127 for the humanoid)
-#   and the unchanged plan from the simulator's exact current state, and keeps the best:
+# * `walker`, `ant` and `humanoid`: **soft actor-critic (SAC), distilled into the learners'
+#   own network**. SAC (`dc_lesson.experts.sac`, CleanRL's loop: a tanh-squashed Gaussian
+#   actor, twin Q networks with Polyak-averaged targets, a tuned entropy temperature) reuses
+#   every transition many times, which is what a 2-core machine needs; our PPO stayed far
+#   below these floors after 5M steps (the curves below). The SAC actor is then copied into
+#   a `GaussianPolicy` of exactly BC's shape (64x64 tanh, an observation normaliser) by
+#   DAgger: roll out the student, label the states it visits with the SAC actor's action,
+#   refit on everything labelled so far (`dc_lesson.experts.network.distil`). So every
+#   expert of these tasks is a Markov policy in the class every learner fits, as the
+#   paper's TRPO experts were. The humanoid's SAC trains with a fallen humanoid ending its
+#   training episode (head below 0.9 m; for training only, as the hopper's PPO).
 #
-#   ```
-#   plan ← zeros(knots, actions)
-#   every control step:
-#       candidates ← [plan + σ·noise for N−1 draws] + [plan]       # keep the old plan too
-#       score(c) ← Σ_{h<H} reward(rollout(state, c)[h])            # mujoco.rollout, in C
-#       plan ← argmax score
-#       act ← plan(now); shift the plan one step
-#   ```
-#
-#   It scores rollouts with the task's own reward function, computed from extra sensors in a
-#   copy of the model: the reward it predicts for a step is, to $10^{-9}$, the reward the
-#   environment pays (`tests/test_planner.py`). The walker and the ant plan with their own
-#   reward. The
-#   humanoid's walk reward is almost zero whenever the head is low, so a planner whose robot starts to fall sees no way back up
-#   within its half-second horizon; it therefore plans with that reward plus a smoothly
-#   shaped "stay tall and upright" term (`planner.PLANNING_REWARDS`), and is judged on the
-#   task's own reward like every other expert. A planner needs no training but costs
-#   minutes of CPU per episode (the manifest records the wall time): the demonstrations were
-#   made once and shipped.
+#   Their first experts were a **planner on the true simulator**, kept as the variant
+#   `planner` (`load_expert("walker", "planner")`, `data/demos/walker-planner.npz`):
+#   predictive sampling keeps a plan for the next half second and at every control step
+#   tries noisy variants of it on a copy of the simulator, keeping the best. It meets the
+#   floors, but it is no Markov policy (its action depends on random plans, not only on the
+#   state), and BC cannot clone it: see the floor table below.
 #
 # The table lists, for each task, the expert, its return over 50 episodes, the random
 # policy's, and the mode shares (tasks without demonstrations yet say so).
@@ -323,10 +314,9 @@ plt.show()
 # whose demonstrations too often arrive nowhere misses its floor.
 #
 # A floor on return does not make an expert *imitable*. The last two columns are BC's scaled
-# return from 25 of the expert's demonstrations, as the stored Table III grid measured it,
-# and whether it reaches 0.5 (`floors.CLONE_FLOOR`; blank where Table III has no row: the
-# multi-mode tasks are Table I's). A planner meets its floor and is not a Markov policy, so
-# BC cannot clone it: on those tasks every learner that starts from BC starts at random.
+# return from 25 of the expert's demonstrations, as the `clonable` study measured it (the
+# mean over its seeds, 50 fresh episodes each: `dc-lesson sweep clonable`), and whether it
+# reaches 0.5 (`floors.CLONE_FLOOR`; blank for the multi-mode tasks, which are Table I's).
 
 # %%
 from dc_lesson.experts import floors
@@ -339,35 +329,61 @@ floor_table["clonable"] = floor_table["clonable"].map(
 floor_table.round(1).fillna("")
 
 # %% [markdown]
-# Why the planner took over three locomotion tasks: the learning curves of our PPO runs,
-# read from their training records (`data/experts/UNIT.json`; each point is the mean return
-# of the training episodes that ended in one update, with the policy's sampling noise, so a
-# little below what its mean action scores). The dashed line is the task's floor. The
-# cheetahs clear it within a million steps. The walker's and the ant's runs flatten out far
-# below theirs after 5M steps (hours of this CPU), so their experts became planners; the runs
-# are kept for this comparison. The hopper's run (its training episodes end when it falls,
-# so the early ones are short) passes its floor within a million steps, a quarter of an hour
-# of this (shared) CPU; without that training-only termination, PPO's early falls left most
-# of every 1000-step episode lying still, and in trial runs of the same length it learned
-# far less.
+# The same measurement on the planner's demonstrations of the walker (the study's row
+# `walker-planner`) says why the experts changed:
 
 # %%
-from dc_lesson.experts import trained
+from IPython.display import Markdown, display
+from dc_lesson.storage import read_result
 
-units = ["halfcheetah", "halfcheetah-backward", "hopper", "walker", "ant"]
-fig, axes = plt.subplots(1, len(units), figsize=(2.6 * len(units), 2.6), sharey=True)
-for ax, unit in zip(axes, units):
-    curve = trained.learning_curve(unit)
-    ax.plot(curve["steps"] / 1e6, curve["episode_return"], lw=1)
-    ax.axhline(floors.FLOORS[curve["task"]], ls="--", c="grey", lw=1)
-    if unit == "hopper":   # standing still earns a quarter of the reward at every step
-        still = 0.25 * tasks.spec("hopper").horizon
-        ax.axhline(still, ls=":", c="C3", lw=1)
-        ax.text(0.05, still + 30, "standing still", fontsize=8, color="C3")
-    ax.set_title(f"{unit}\n({curve['training_seconds'] / 3600:.1f} h of training)", fontsize=9)
-    ax.set_xlabel("million steps")
-axes[0].set_ylabel("training episode return")
-axes[0].set_ylim(0, 1000)
+clone_rows = read_result("clonable.json")["table"]
+said = [f"BC from 25 demonstrations of the {r['expert']} expert of {r['task']}: "
+        f"{r['scaled_return_mean']:.2f} ({r['seeds']} seed{'s' if r['seeds'] > 1 else ''})"
+        for r in clone_rows if r["task"] == "walker"]
+display(Markdown("; ".join(said) + "."))
+missed = [r["task"] for r in clone_rows
+          if r["demonstrations"] == r["task"] and not r["clonable"]]
+if missed:
+    display(Markdown("Not clonable by this bar: " + ", ".join(missed) + " (BC from all 25 "
+                     "demonstrations stays below 0.5; the learners that start from BC there "
+                     "start low)."))
+
+# %% [markdown]
+# Where the experts came from: the learning curves read from their training records
+# (`data/experts/UNIT.json`). Top, our PPO runs: each point is the mean return of the
+# training episodes that ended in one update, with the policy's sampling noise, so a little
+# below what its mean action scores; the dashed line is the task's floor. The cheetahs clear
+# it within a million steps, the hopper (its training episodes end when it falls, so the
+# early ones are short) within a million, a quarter of an hour of this CPU; without that
+# training-only termination, PPO's early falls left most of every 1000-step episode lying
+# still. The walker's and the ant's PPO runs flatten out far below their floors after 5M
+# steps (hours of this CPU). Bottom, SAC on those tasks (and the humanoid): each point is
+# the return of two evaluation episodes with the actor's mean action, against environment
+# steps; the distilled network's own return is in the table above.
+
+# %%
+from dc_lesson.experts import network, trained
+
+rows_of_units = [["halfcheetah", "halfcheetah-backward", "hopper", "walker-ppo", "ant-ppo"],
+                 [u for u in network.SAC_RECIPES if network.paths(u)["meta"].exists()]]
+fig, axes = plt.subplots(2, 5, figsize=(13, 5.4), sharey=True)
+for row, units in zip(axes, rows_of_units):
+    for ax in row[len(units):]:
+        ax.axis("off")
+    for ax, unit in zip(row, units):
+        curve = trained.learning_curve(unit)
+        ax.plot(curve["steps"] / 1e6, curve["episode_return"], lw=1)
+        ax.axhline(floors.FLOORS[curve["task"]], ls="--", c="grey", lw=1)
+        if unit == "hopper":   # standing still earns a quarter of the reward at every step
+            still = 0.25 * tasks.spec("hopper").horizon
+            ax.axhline(still, ls=":", c="C3", lw=1)
+            ax.text(0.05, still + 30, "standing still", fontsize=8, color="C3")
+        how = "PPO" if unit in trained.RECIPES else "SAC"
+        ax.set_title(f"{unit} ({how})\n{curve['training_seconds'] / 3600:.1f} h of training",
+                     fontsize=9)
+        ax.set_xlabel("million steps")
+    row[0].set_ylabel("episode return")
+axes[0, 0].set_ylim(0, 1000)
 plt.tight_layout()
 plt.show()
 

@@ -68,13 +68,13 @@ def test_the_report_covers_every_task_and_agrees_with_the_manifest():
             assert r["meets floor"] == (r["expert return"] >= r["floor"])
 
 
-def test_clonable_reads_bc_from_the_stored_grid(tmp_path):
+def test_clonable_reads_bc_from_the_stored_study(tmp_path):
     import json
-    (tmp_path / "table3.json").write_text(json.dumps({"table": [
-        {"row": "bc", "task": "walker", "n_demos": 25, "scaled_return_mean": 0.49},
-        {"row": "bc", "task": "hopper", "n_demos": 25, "scaled_return_mean": 0.51},
-        {"row": "bc", "task": "hopper", "n_demos": 4, "scaled_return_mean": 0.1},
-        {"row": "gail", "task": "ant", "n_demos": 25, "scaled_return_mean": 0.9}]}))
+    (tmp_path / "clonable.json").write_text(json.dumps({"table": [
+        {"task": "walker", "demonstrations": "walker", "scaled_return_mean": 0.49},
+        {"task": "hopper", "demonstrations": "hopper", "scaled_return_mean": 0.51},
+        # another expert's demonstrations of a task never stand for the task's own
+        {"task": "ant", "demonstrations": "ant-planner", "scaled_return_mean": 0.9}]}))
     rows = {r["task"]: r for r in floors.report(results_dir=tmp_path)}
     assert rows["walker"]["clonable"] is False and rows["hopper"]["clonable"] is True
     assert rows["ant"]["clonable"] is None and rows["reacher4"]["BC from 25 demos"] is None

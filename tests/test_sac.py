@@ -88,3 +88,20 @@ def test_bad_settings_are_refused_at_construction(field, value):
 def test_checkpoints_fall_between_episodes():
     with pytest.raises(ValueError, match="horizon"):
         sac.train("cartpole", dataclasses.replace(TINY, checkpoint_every=1500))
+
+
+def test_a_training_only_termination_ends_episodes_and_cuts_the_bootstrap(tmp_path):
+    from dc_lesson import tasks
+    from dc_lesson.nn.checkpoint import load_checked
+    torch.set_num_threads(1)
+    cfg = dataclasses.replace(TINY, terminate="hopper-fall")
+    out = sac.train("hopper", cfg, checkpoint=tmp_path / "h.sac")
+    assert out["done"] and out["steps"] == cfg.total_steps
+    st = load_checked(tmp_path / "h.sac", sac.CHECKPOINT_FORMAT, sac.CHECKPOINT_VERSION, "x")
+    done = st["buffer"]["done"].numpy()
+    fell = tasks.TERMINATIONS["hopper-fall"](st["buffer"]["next_obs"].numpy())
+    # random actions topple the hopper: episodes end at the fall, which is marked terminal,
+    # and only there (a run ignoring the test would store 2 episodes and no terminal)
+    assert done.sum() >= 5 and np.array_equal(done == 1, fell)
+    with pytest.raises(ValueError, match="terminate must be one of"):
+        sac.SACConfig(terminate="walker-fall")

@@ -82,6 +82,9 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--restart", action="store_true",
                    help="train: discard the checkpoint (even a committed one made with another "
                         "configuration) and train from the first update")
+    s.add_argument("--hours", type=positive_float, default=None,
+                   help="train, network experts (walker, ant, humanoid): stop SAC at its first "
+                        "checkpoint after this many hours; run again to resume")
     s.add_argument("--episodes", type=positive_int, default=10,
                    help="evaluation episodes (default: 10)")
     s.set_defaults(func=cmd_expert)

@@ -112,18 +112,29 @@ def cmd_expert(args) -> int:
 
 def _expert(args) -> int:
     from dc_lesson.data import rollout
-    from dc_lesson.experts import load_expert, planner, trained
-    if args.what == "eval" and (args.steps is not None or args.restart):
-        raise UsageError("--steps and --restart apply to expert train, not expert eval")
+    from dc_lesson.experts import load_expert, network, trained
+    if args.what == "eval" and (args.steps is not None or args.restart
+                                or args.hours is not None):
+        raise UsageError("--steps, --restart and --hours apply to expert train, not expert eval")
     for name in args.task:
+        if args.hours is not None and name not in network.SAC_RECIPES:
+            raise UsageError(f"--hours applies to the network experts "
+                             f"({', '.join(network.SAC_RECIPES)}), not {name}")
         if args.what == "train":
-            if name in planner.PLANNERS:
-                planner.write_settings(name, command=command_line())
-                print(f"{name}: the expert is a planner, nothing to train; its settings are in "
-                      f"{planner.settings_path(name)}; evaluating it costs minutes per episode: "
-                      f"dc-lesson expert eval --task {name} --episodes N")
-                continue
-            elif name in trained.EXPERT_UNITS:
+            if name in network.SAC_RECIPES:
+                if args.steps is not None or args.restart:
+                    raise UsageError(f"{name}'s expert is SAC + distillation: --steps and "
+                                     f"--restart apply to the PPO experts; to train again, "
+                                     f"delete {network.paths(name)['checkpoint']}")
+                meta = network.train_sac(name, hours=args.hours, command=command_line())
+                if not meta["done"]:
+                    print(f"{name}: SAC stopped at {meta['steps']:,} of "
+                          f"{network.SAC_RECIPES[name].total_steps:,} steps (checkpoint "
+                          f"{network.paths(name)['checkpoint']}); resume with: "
+                          f"dc-lesson expert train --task {name}")
+                    continue
+                network.distil_expert(name, command=command_line())
+            elif name in trained.PPO_TASKS:
                 for unit in trained.EXPERT_UNITS[name]:
                     meta = trained.train_unit(unit, total_steps=args.steps,
                                               command=command_line(), restart=args.restart)

@@ -44,11 +44,12 @@ def learner_features(trajectories) -> np.ndarray:
 
 
 def measure(task: str, trajectories, reference: _data.Demonstrations | None,
-            emd_n_max: int | None = 2000) -> dict:
+            emd_n_max: int | None = 2000, variant: str | None = None) -> dict:
     """The measures of the module docstring for episodes already collected; with no
-    ``reference`` (None) only the returns and mode shares, the divergences None."""
+    ``reference`` (None) only the returns and mode shares, the divergences None.
+    ``variant``: scale the return by that expert variant's manifest entry."""
     trajectories = list(trajectories)
-    scaled, _ = _metrics.scaled_return(task, trajectories)
+    scaled, _ = _metrics.scaled_return(task, trajectories, variant=variant)
     returns = _rollout.returns(trajectories)
     out = {"scaled_return": scaled, "return": float(returns.mean()),
            "return_std": float(returns.std()),
@@ -73,7 +74,8 @@ ACTIONS = ("mean", "sampled")
 def evaluate_policy(task: str, policy, reference: _data.Demonstrations | None = None, *,
                     n_episodes: int = 50, seed: int = EVAL_SEED,
                     emd_n_max: int | None = 2000, keep_features: bool = False,
-                    actions: str = "mean", divergences: bool = True) -> dict:
+                    actions: str = "mean", divergences: bool = True,
+                    variant: str | None = None) -> dict:
     """Runs ``policy`` for ``n_episodes`` fresh episodes and measures it (module docstring).
 
     ``reference`` defaults to all the task's demonstrations; ``divergences=False`` measures
@@ -82,7 +84,8 @@ def evaluate_policy(task: str, policy, reference: _data.Demonstrations | None = 
     with the training data).  With ``keep_features`` the
     result also holds ``features``, the learner's mode features (for coverage plots).
     ``actions``: ``"mean"`` (the mean action) or ``"sampled"`` (actions drawn at the
-    policy's learned std, from a generator seeded by ``seed``).
+    policy's learned std, from a generator seeded by ``seed``).  ``variant``: the scaled
+    return's ends are that expert variant's (``"planner"``), not the task's default expert's.
     """
     if actions not in ACTIONS:
         raise ValueError(f"actions must be one of {ACTIONS}, got {actions!r}")
@@ -95,7 +98,7 @@ def evaluate_policy(task: str, policy, reference: _data.Demonstrations | None = 
     t0 = time.perf_counter()
     trajs = _rollout.collect(task, acting, n_episodes, seed=seed, progress=False)
     t1 = time.perf_counter()
-    out = measure(task, trajs, reference, emd_n_max)
+    out = measure(task, trajs, reference, emd_n_max, variant=variant)
     out["eval_seconds"], out["measure_seconds"] = t1 - t0, time.perf_counter() - t1
     out["returns"] = [round(float(t.ret), 3) for t in trajs]
     if keep_features:

@@ -212,17 +212,19 @@ def _returns(returns) -> np.ndarray:
 
 
 def scaled_return(task: str, returns, expert: float | None = None,
-                  random: float | None = None) -> tuple[float, np.ndarray]:
+                  random: float | None = None, variant: str | None = None
+                  ) -> tuple[float, np.ndarray]:
     """Returns on the scale random policy = 0, expert = 1: (R - random) / (expert - random).
 
     ``expert`` and ``random`` default to the mean returns the demonstrations' manifest
-    records for ``task`` (measured over 50 episodes each by ``dc-lesson demos``).  ``returns``
+    records for ``task`` (measured over 50 episodes each by ``dc-lesson demos``; for an expert
+    ``variant``, what it records for that variant's demonstrations).  ``returns``
     are episode returns, or trajectories.  Gives (scaled mean return, scaled return of each
     episode).
     """
     r = _returns(returns)
     if expert is None or random is None:
-        entry = _data.manifest_entry(task)
+        entry = _data.manifest_entry(task, variant=variant)
         expert = entry["expert_return"]["mean"] if expert is None else expert
         random = entry["random_return"]["mean"] if random is None else random
     else:

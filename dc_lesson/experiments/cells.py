@@ -126,7 +126,8 @@ class Cell:
         return pathlib.Path(root or cells_root()) / self.study / self.task / f"{self.name}.json"
 
 
-def _demos_identity(task: str, variant=None) -> dict | None:
+def demos_identity(task: str, variant=None) -> dict | None:
+    """What names a task's demonstrations in a cell's config: their sha256 and expert."""
     from dc_lesson import tasks as _tasks
     from dc_lesson.data import store
     if task not in _tasks.NAMES:
@@ -146,7 +147,7 @@ def make_cell(study: str, learner: str, task: str, n_demos: int, seed: int, conf
     demonstrations or a new expert make new cells, never silently reuse old ones."""
     needs = tuple(needs)
     config = dict(config)
-    config.setdefault("demos", _demos_identity(task, config.get("demo_variant")))
+    config.setdefault("demos", demos_identity(task, config.get("demo_variant")))
     if needs:
         config["needs"] = [f"{n.study}/{n.task}/{n.name}" for n in needs]
     return Cell(study, learner, task, int(n_demos), int(seed), canonical(config), variant,

@@ -2,14 +2,17 @@
 
 ``scripted`` holds hand-designed controllers (no learning) for the tasks where one is easy to
 write: an LQR for ``cartpole`` and inverse kinematics + PD for the reachers.  ``trained``
-holds the PPO experts of the locomotion tasks; ``planner`` a sampling-based planner on the
-true simulator (predictive sampling), the expert where PPO on this CPU falls short.
+holds the PPO experts of hopper and the cheetahs; ``network`` those of walker, ant and
+humanoid (SAC, distilled into the learners' GaussianPolicy); ``planner`` a sampling-based
+planner on the true simulator (predictive sampling), these three tasks' first experts, kept
+as the variant ``"planner"``: it meets the floors but is no Markov policy, so BC cannot clone it.
 """
 
 from __future__ import annotations
 
 
-VARIANTS = {"reacher2": ("coin",), "reacher4": ("coin",), "halfcheetah2": ("coin",)}
+VARIANTS = {"reacher2": ("coin",), "reacher4": ("coin",), "halfcheetah2": ("coin",),
+            "walker": ("planner",), "ant": ("planner",), "humanoid": ("planner",)}
 
 # The mode shares the realizable experts' choice rules give over start states (measured on the
 # first observations of seeds 0..9999: reachers, the target nearest the start; halfcheetah2,
@@ -22,8 +25,9 @@ def load_expert(task: str, variant: str | None = None):
     """The expert of ``task`` as a batch policy, and a JSON-able description of it.
 
     Scripted controllers for ``cartpole`` and the reachers; the planner for the tasks in
-    ``planner.PLANNERS``; network policies trained with PPO (``dc-lesson expert train``) for
-    the others, read from ``data/experts/``.
+    the variant ``"planner"`` (walker, ant, humanoid); network policies (PPO, or SAC distilled
+    into a GaussianPolicy: ``dc-lesson expert train``) for the others, read from
+    ``data/experts/``.
 
     The multi-mode experts choose their mode from the observed start state (the nearest
     target; the back thigh's starting angle), so a Markov policy can follow them; the variant
@@ -39,8 +43,8 @@ def load_expert(task: str, variant: str | None = None):
     if task in scripted.SCRIPTED_TASKS:
         policy = scripted.expert_for(task, variant)
         return policy, scripted.describe(task, variant)
-    from dc_lesson.experts import planner
-    if task in planner.PLANNERS:
+    if variant == "planner":
+        from dc_lesson.experts import planner
         return planner.load_planner_expert(task)
     from dc_lesson.experts import trained
     return trained.load_trained_expert(task, variant=variant)

@@ -25,9 +25,9 @@ How each floor is judged:
 
 A floor on return says nothing about whether a learner can imitate the expert: a sampling
 planner meets every floor and is no Markov policy.  So :func:`report` also gives BC's scaled
-return from 25 of the expert's demonstrations, as the stored Table III grid measured it
-(``data/results/table3.json``), and calls the expert *clonable* when it reaches
-``CLONE_FLOOR`` (issue 39's bar).
+return from 25 of the expert's demonstrations, as the ``clonable`` study measured it
+(``data/results/clonable.json``: the mean over its seeds, 50 episodes each), and calls the
+expert *clonable* when it reaches ``CLONE_FLOOR`` (issue 39's bar).
 """
 
 from __future__ import annotations
@@ -87,22 +87,23 @@ def check(task: str, entry: dict, trajectories) -> dict:
 
 
 def bc_from_25(results_dir=None) -> dict[str, float]:
-    """BC's mean scaled return from 25 demonstrations per task, from the stored Table III
-    aggregate (empty when it is not there)."""
+    """BC's mean scaled return from 25 demonstrations of each task's default expert, from the
+    stored ``clonable`` aggregate (empty when it is not there)."""
     import json
     from dc_lesson import storage
-    path = (storage.DATA / "results" if results_dir is None else results_dir) / "table3.json"
+    path = (storage.DATA / "results" if results_dir is None else results_dir) / "clonable.json"
     if not path.is_file():
         return {}
-    rows = json.loads(path.read_text()).get("table", [])
-    return {r["task"]: float(r["scaled_return_mean"]) for r in rows
-            if r.get("row") == "bc" and r.get("n_demos") == 25}
+    rows = json.loads(storage.read_text(path, "result file",
+                                        "rebuild it with: dc-lesson aggregate clonable"))
+    return {r["task"]: float(r["scaled_return_mean"]) for r in rows.get("table", [])
+            if r.get("demonstrations") == r.get("task")}
 
 
 def report(directory=None, results_dir=None) -> list[dict]:
     """:func:`check` for every task with shipped demonstrations, in the tasks' order, with BC's
     stored score from 25 demonstrations beside it (``clonable``: at least ``CLONE_FLOOR``;
-    None where the grid has no such row, e.g. the multi-mode tasks, which Table I covers)."""
+    None where the study has no such row: the multi-mode tasks, which Table I covers)."""
     from dc_lesson import data
     from dc_lesson import tasks as _tasks
     manifest = data.read_manifest(directory)["tasks"]

@@ -13,8 +13,10 @@ One readable loop, CleanRL's ``sac_continuous_action.py`` with every detail name
 * two Q networks and their Polyak-averaged targets (tau = 0.005); the target is
   r + gamma * (min_j Q'_j(s', a') - alpha log pi(a'|s')), a' ~ pi(.|s');
 * the entropy temperature alpha tuned towards the target entropy -act_dim;
-* the fixed horizon is a time limit, not a terminal state, so the target always bootstraps
-  (``done`` is never used to cut it: none of these ports ends an episode early);
+* the fixed horizon is a time limit, not a terminal state, so the target bootstraps there;
+  only a *training-only* termination (``terminate``, a name in ``tasks.TERMINATIONS``, as
+  PPO's ``terminate``: Gym's fallen humanoid) ends an episode early, and its last transition
+  is terminal (no bootstrap). The tasks themselves never end early;
 * ``learning_starts`` uniformly random actions first; then one gradient step per environment
   step; the actor and alpha every ``policy_frequency`` steps, that many times (CleanRL's
   delayed update).
@@ -67,6 +69,7 @@ class SACConfig:
     log_every: int = 5_000           # a log row (and an evaluation) every this many steps
     checkpoint_every: int = 25_000
     eval_episodes: int = 2
+    terminate: str | None = None     # a training-only termination (tasks.TERMINATIONS)
     seed: int = 0
 
     def __post_init__(self):
@@ -85,6 +88,9 @@ class SACConfig:
                 raise ValueError(f"SACConfig.{name} must be a positive finite number, got {v!r}")
         if not 0 < self.gamma < 1 or self.tau > 1:
             raise ValueError("SACConfig needs 0 < gamma < 1 and 0 < tau <= 1")
+        if self.terminate is not None and self.terminate not in _tasks.TERMINATIONS:
+            raise ValueError(f"SACConfig.terminate must be one of "
+                             f"{', '.join(_tasks.TERMINATIONS)} or None, got {self.terminate!r}")
         if not self.hidden or any(isinstance(h, bool) or not isinstance(h, int) or h < 1
                                   for h in self.hidden):
             raise ValueError(f"SACConfig.hidden must be positive layer widths, got "
@@ -203,7 +209,8 @@ def train(task: str, config: SACConfig = SACConfig(), checkpoint=None, progress=
     a_opt = torch.optim.Adam([log_alpha], lr=cfg.q_lr)
     n = min(cfg.buffer_size, cfg.total_steps)
     buf = {"obs": np.zeros((n, obs_dim), np.float32), "act": np.zeros((n, act_dim), np.float32),
-           "rew": np.zeros(n, np.float32), "next_obs": np.zeros((n, obs_dim), np.float32)}
+           "rew": np.zeros(n, np.float32), "next_obs": np.zeros((n, obs_dim), np.float32),
+           "done": np.zeros(n, np.float32)}   # 1: a training-only terminal transition
     rng = np.random.default_rng(cfg.seed)           # random actions, minibatch indices
     gen = torch.Generator().manual_seed(cfg.seed)   # the actor's sampling noise
     step, size, ptr, episode, log, seconds = 0, 0, 0, 0, [], 0.0
@@ -211,7 +218,7 @@ def train(task: str, config: SACConfig = SACConfig(), checkpoint=None, progress=
     if ckpt is not None and ckpt.exists():
         st = load_checked(ckpt, CHECKPOINT_FORMAT, CHECKPOINT_VERSION, "SAC checkpoint",
                           f"delete {ckpt} to train from the start")
-        if st["config"] != json_config(cfg):
+        if {**json_config(SACConfig()), **st["config"]} != json_config(cfg):
             raise ValueError(f"the SAC checkpoint {ckpt} was made with another configuration; "
                              f"delete it to train from the start")
         actor.load_state_dict(st["actor"]); qf.load_state_dict(st["qf"])
@@ -221,8 +228,9 @@ def train(task: str, config: SACConfig = SACConfig(), checkpoint=None, progress=
         for o, s in zip((q_opt, pi_opt, a_opt), st["opts"]):
             o.load_state_dict(s)
         size, ptr, step, episode = st["size"], st["ptr"], st["step"], st["episode"]
-        for k in buf:
-            buf[k][:size] = st["buffer"][k].numpy()
+        for k in buf:   # a checkpoint from before ``done`` existed holds no terminal
+            if k in st["buffer"]:
+                buf[k][:size] = st["buffer"][k].numpy()
         rng.bit_generator.state = _json.loads(st["np_rng"])
         gen.set_state(st["torch_gen"])
         log, seconds = _json.loads(st["log"]), st["seconds"]
@@ -242,7 +250,9 @@ def train(task: str, config: SACConfig = SACConfig(), checkpoint=None, progress=
     t_chunk = time.perf_counter()
     t_last = t_chunk
     q_hist, pi_hist, ret_hist = [], [], []
+    terminal = _tasks.TERMINATIONS[cfg.terminate] if cfg.terminate else None
     while step < cfg.total_steps:
+        first_step = step
         # one episode (the fixed horizon; a time limit, so every target bootstraps)
         obs = env.reset(seed=cfg.seed * 1_000_003 + episode)
         ep_ret = 0.0
@@ -255,8 +265,9 @@ def train(task: str, config: SACConfig = SACConfig(), checkpoint=None, progress=
                                            generator=gen)
                 act = a[0].numpy()
             next_obs, r, _ = env.step(act)
+            ended = bool(terminal(next_obs[None])[0]) if terminal is not None else False
             buf["obs"][ptr], buf["act"][ptr], buf["rew"][ptr] = obs, act, r
-            buf["next_obs"][ptr] = next_obs
+            buf["next_obs"][ptr], buf["done"][ptr] = next_obs, float(ended)
             ptr, size = (ptr + 1) % n, min(size + 1, n)
             obs, ep_ret, step = next_obs, ep_ret + r, step + 1
             if step > cfg.learning_starts:
@@ -267,7 +278,7 @@ def train(task: str, config: SACConfig = SACConfig(), checkpoint=None, progress=
                 with torch.no_grad():
                     na, nlogp, _ = actor.sample(b["next_obs"], generator=gen)
                     q_next = qf_target(b["next_obs"], na).min(0).values - alpha * nlogp
-                    target = b["rew"] + cfg.gamma * q_next
+                    target = b["rew"] + cfg.gamma * (1 - b["done"]) * q_next
                 q_loss = F.mse_loss(qf(b["obs"], b["act"]),
                                     target.expand(2, -1), reduction="none").mean(1).sum()
                 q_opt.zero_grad(); q_loss.backward(); q_opt.step()
@@ -286,9 +297,13 @@ def train(task: str, config: SACConfig = SACConfig(), checkpoint=None, progress=
                 with torch.no_grad():   # Polyak averaging of the targets
                     for p, pt in zip(qf.parameters(), qf_target.parameters()):
                         pt.lerp_(p, cfg.tau)
+            if ended or step >= cfg.total_steps:
+                break
         episode += 1
         ret_hist.append(ep_ret)
-        if step % cfg.log_every == 0:
+        # a log row (a checkpoint) when the episode crossed a multiple of log_every
+        # (checkpoint_every): at every such multiple when episodes run the whole horizon
+        if step // cfg.log_every > first_step // cfg.log_every:
             now = time.perf_counter()
             seconds += now - t_last
             row = {"steps": step, "train_return": float(np.mean(ret_hist)),
@@ -304,7 +319,8 @@ def train(task: str, config: SACConfig = SACConfig(), checkpoint=None, progress=
             q_hist, pi_hist, ret_hist = [], [], []
             if progress:
                 progress(row)
-        if ckpt is not None and (step % cfg.checkpoint_every == 0 or step >= cfg.total_steps):
+        if ckpt is not None and (step // cfg.checkpoint_every > first_step // cfg.checkpoint_every
+                                 or step >= cfg.total_steps):
             save()
             if stop_after_seconds is not None and \
                     time.perf_counter() - t_chunk >= stop_after_seconds:

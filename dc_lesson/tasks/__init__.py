@@ -74,9 +74,9 @@ _PORTS = {
 _MODELS: dict = {}   # compiled models, one per task and process: compiling costs ~0.1 s
 
 NAMES: tuple[str, ...] = tuple(_PORTS)
-# Training-only terminal tests by name, for PPO's ``terminate`` (the tasks never end early):
-# fn(observations (N, obs_dim)) -> (N,) bool.
-TERMINATIONS = {"hopper-fall": hopper.fell}
+# Training-only terminal tests by name, for PPO's and SAC's ``terminate`` (the tasks never
+# end early): fn(observations (N, obs_dim)) -> (N,) bool.
+TERMINATIONS = {"hopper-fall": hopper.fell, "humanoid-fall": humanoid.fell}
 SPECS: dict[str, TaskSpec] = {name: port.spec for name, port in _PORTS.items()}
 
 

@@ -26,6 +26,18 @@ class Physics(suite_humanoid.Physics):
     pass
 
 
+HEAD_INDEX = 21          # head height in the observation (after the 21 joint angles)
+FALLEN_HEAD = 0.9        # m: the head of a standing humanoid is at about 1.5 m
+
+
+def fell(obs: np.ndarray) -> np.ndarray:
+    """A fallen humanoid: its head below ``FALLEN_HEAD``. A *training-only* termination
+    (SAC's ``terminate="humanoid-fall"``, as Gym's Humanoid ends an episode when the torso
+    drops below 1 m): the task never ends early, and a fallen humanoid earns about nothing,
+    since the walk reward is multiplied by a standing term of the head's height."""
+    return np.asarray(obs)[..., HEAD_INDEX] < FALLEN_HEAD
+
+
 _ZX, _ZY, _ZZ = 6, 7, 8   # entries of a flattened rotation matrix
 _EXTREMITIES = ("left_hand", "left_foot", "right_hand", "right_foot")
 

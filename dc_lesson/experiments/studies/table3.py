@@ -75,10 +75,23 @@ TASKS = ("cartpole", "reacher1", "hopper", "walker", "halfcheetah", "ant", "huma
 LEARNERS = ("bc", "gail", "dril", "pwil", "ndi", "gpril", "dc")
 
 
+# The demonstrations the stored grid ran on (December 2026): walker's, ant's and humanoid's
+# came from the sampling planner, their experts then, which is today the variant "planner"
+# (their default experts are SAC networks since, experts.network). The grid keeps reading what
+# it ran on, so a rechecked cell is the stored one; the rerun of issue 41 moves it.
+DEMO_VARIANT = {"walker": "planner", "ant": "planner", "humanoid": "planner"}
+
+
+def demos_of(task: str, n: int | None = None):
+    """The demonstrations of ``task`` the grid uses (``DEMO_VARIANT``), the first ``n``."""
+    return _store.load_demos(task, n_trajectories=n, variant=DEMO_VARIANT.get(task))
+
+
 def fresh_reference(task: str) -> bool:
     """Whether ``task``'s cells are scored against fresh expert episodes (and have an expert
     row): every task whose demonstrations' expert is not a sampling planner."""
-    return _data.manifest_entry(task)["expert"]["kind"] != "planner"
+    return (_data.manifest_entry(task, variant=DEMO_VARIANT.get(task))["expert"]["kind"]
+            != "planner")
 
 
 def rl_cell_kept(task: str, n_demos: int, seed: int, b) -> bool:
@@ -128,6 +141,9 @@ def cells_at(b) -> list[cells.Cell]:
                          "curve_points": b.table3_curve_points,
                          "curve_episodes": b.table3_curve_episodes,
                          "divergences": fresh,
+                         # the demonstrations the grid runs on (DEMO_VARIANT), as identified
+                         # when it was listed: the same identity, so the same cells
+                         "demos": cells.demos_identity(task, DEMO_VARIANT.get(task)),
                          learner: _im.without_seed(cfg)}, needs=needs))
     out.sort(key=lambda c: (c.seed, c.n_demos, TASKS.index(c.task)))   # seed-major
     return out + _common.expert_rows(NAME, [t for t in TASKS if fresh_reference(t)],
@@ -142,12 +158,13 @@ def run_cell(cell, needs):
     cfg = learner_config(cell.learner, b, cell.task, cell.seed)
     _im.check_config(cell, json.loads(cfg.to_json()))
     reference = _common.reference(needs) if c["divergences"] else None
-    demos = _store.load_demos(cell.task, n_trajectories=cell.n_demos)
+    demos = demos_of(cell.task, cell.n_demos)
 
     def evaluate(policy, n_episodes):
         return _evaluation.evaluate_policy(cell.task, policy, reference,
                                            n_episodes=n_episodes, seed=c["eval_seed"],
-                                           divergences=c["divergences"])
+                                           divergences=c["divergences"],
+                                           variant=DEMO_VARIANT.get(cell.task))
 
     out = {}
     t0 = time.perf_counter()
@@ -175,7 +192,7 @@ def expert_manifest() -> list[dict]:
     ``scaled_std`` is one episode's spread on the scaled-return axis."""
     out = []
     for task in TASKS:
-        e = _data.manifest_entry(task)
+        e = _data.manifest_entry(task, variant=DEMO_VARIANT.get(task))
         ex, rnd = e["expert_return"], e["random_return"]
         out.append({"task": task, "episodes": ex["n_episodes"], "return_mean": ex["mean"],
                     "return_std": ex["std"], "scaled_std": ex["std"] / (ex["mean"] - rnd["mean"]),
@@ -216,5 +233,5 @@ STUDY = cells.Study(NAME, "Table III / Figures 9 and 11: every learner on the si
                     run_cell=lambda c, n: _common.run_expert_or(c, n, run_cell),
                     aggregate=aggregate, result_file="table3.json")
 
-__all__ = ["IDLE_SINCE", "IDLE_UNTIL", "LEARNERS", "NAME", "STUDY", "TASKS", "cells_at", "expert_manifest", "fresh_reference",
+__all__ = ["DEMO_VARIANT", "IDLE_SINCE", "demos_of", "IDLE_UNTIL", "LEARNERS", "NAME", "STUDY", "TASKS", "cells_at", "expert_manifest", "fresh_reference",
            "learner_config", "reduced_rows", "rl_cell_kept", "run_cell"]
