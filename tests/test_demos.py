@@ -19,8 +19,13 @@ ROOT = pathlib.Path(__file__).resolve().parent.parent
 
 def test_demonstrations_are_shipped_and_data_stays_small():
     assert SHIPPED, "no demonstrations in data/demos"
-    size = sum(p.stat().st_size for p in (ROOT / "data").rglob("*") if p.is_file())
-    assert size < 60e6, f"data/ holds {size / 1e6:.1f} MB"
+    # SAC's checkpoints (replay buffers, hundreds of MB) live there while an expert trains
+    # and are never committed (.gitignore): what ships is the rest
+    size = sum(p.stat().st_size for p in (ROOT / "data").rglob("*")
+               if p.is_file() and ".sac" not in p.suffixes)
+    # 60 MB until 2026-12-05; then the planner's demonstrations of walker, ant and humanoid
+    # (15 MB) stayed beside the network experts' as the documented variant "planner"
+    assert size < 80e6, f"data/ holds {size / 1e6:.1f} MB"
 
 
 def _set(name: str):
@@ -64,7 +69,7 @@ def test_expert_rerun_falls_within_the_manifests_spread(name):
         # Minutes per episode: instead, the planner re-run on the first demonstration takes
         # exactly the stored actions (it is a deterministic function of the episode seed).
         assert entry["expert"]["config"] == info["config"]
-        demo = data.load_demos(task, n_trajectories=1).trajectories[0]
+        demo = data.load_demos(task, n_trajectories=1, variant=variant).trajectories[0]
         rerun = rollout.collect(task, expert, 1, seed=demos_module.DEMO_SEED, max_steps=3)[0]
         np.testing.assert_array_equal(rerun.actions, demo.actions[:3])
         assert entry["expert_return"]["mean"] > entry["random_return"]["mean"]

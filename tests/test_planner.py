@@ -161,7 +161,7 @@ def test_bad_settings_and_misuse_give_clear_errors():
 
 def test_planner_tasks_load_as_planners_and_write_their_settings(tmp_path):
     for task in planner.PLANNERS:
-        expert, info = load_expert(task)
+        expert, info = load_expert(task, "planner")
         assert isinstance(expert, PredictiveSampling) and info["kind"] == "planner"
         settings = dict(planner.PLANNERS[task].__dict__)
         del settings["threads"]      # not a setting of the expert: results do not depend on it
@@ -240,33 +240,33 @@ def test_the_two_stages_run_apart_and_give_the_file_of_one_run(tmp_path, monkeyp
     cheap = PlannerConfig(n_samples=2, horizon=0.05, n_knots=2, noise=0.3)
     monkeypatch.setitem(planner.PLANNERS, "walker", cheap)
     kw = dict(n_demos=2, n_eval=3, progress=False, threads=1)
-    straight = demos.make_demos("walker", directory=tmp_path / "straight", **kw)
+    straight = demos.make_demos("walker", variant="planner", directory=tmp_path / "straight", **kw)
     staged_dir = tmp_path / "staged"
-    assert demos.make_demos("walker", directory=staged_dir, stage="eval", **kw) is None
-    assert demos.make_demos("walker", directory=staged_dir, stage="demos", **kw) is None
+    assert demos.make_demos("walker", variant="planner", directory=staged_dir, stage="eval", **kw) is None
+    assert demos.make_demos("walker", variant="planner", directory=staged_dir, stage="demos", **kw) is None
     calls, _ = _record_collects(monkeypatch, lambda policy, kw: type(policy).__name__)
-    staged = demos.make_demos("walker", directory=staged_dir, **kw)
+    staged = demos.make_demos("walker", variant="planner", directory=staged_dir, **kw)
     assert calls == ["RandomPolicy"]          # the planner's episodes were all on disk
     assert staged["sha256"] == straight["sha256"]
     assert staged["expert_return"] == straight["expert_return"]
-    assert not list((staged_dir / "partial").glob("walker-*"))
+    assert not list((staged_dir / "partial").glob("walker-planner-*"))
     # The evaluation stage split between two processes, one from its start and one from
     # episode 1 on: the same file again, and the planner runs no episode twice.
     split_dir = tmp_path / "split"
     kw3 = {**kw, "n_eval": 4}
-    straight3 = demos.make_demos("walker", directory=tmp_path / "straight3", **kw3)
+    straight3 = demos.make_demos("walker", variant="planner", directory=tmp_path / "straight3", **kw3)
     calls.clear()
-    assert demos.make_demos("walker", directory=split_dir, stage="eval", first=1, **kw3) is None
-    assert demos.make_demos("walker", directory=split_dir, stage="eval", **kw3) is None
-    assert demos.make_demos("walker", directory=split_dir, stage="demos", **kw3) is None
+    assert demos.make_demos("walker", variant="planner", directory=split_dir, stage="eval", first=1, **kw3) is None
+    assert demos.make_demos("walker", variant="planner", directory=split_dir, stage="eval", **kw3) is None
+    assert demos.make_demos("walker", variant="planner", directory=split_dir, stage="demos", **kw3) is None
     assert calls.count("PredictiveSampling") == 2 + 2   # 2 demos, 2 evaluation episodes
-    split = demos.make_demos("walker", directory=split_dir, **kw3)
+    split = demos.make_demos("walker", variant="planner", directory=split_dir, **kw3)
     assert split["sha256"] == straight3["sha256"]
     assert split["expert_return"] == straight3["expert_return"]
     with pytest.raises(ValueError, match="first applies to stage 'eval'"):
-        demos.make_demos("walker", directory=split_dir, stage="demos", first=1, **kw3)
+        demos.make_demos("walker", variant="planner", directory=split_dir, stage="demos", first=1, **kw3)
     with pytest.raises(ValueError, match="stages are: demos, eval"):
-        demos.make_demos("walker", directory=staged_dir, stage="random", **kw)
+        demos.make_demos("walker", variant="planner", directory=staged_dir, stage="random", **kw)
     with pytest.raises(ValueError, match="without --stage"):
         demos.make_demos("cartpole", directory=staged_dir, stage="demos", **kw)
 

@@ -59,7 +59,8 @@ def build_parser() -> argparse.ArgumentParser:
     s = sub.add_parser("demos", help="roll out a task's expert into data/demos/")
     s.add_argument("--task", nargs="+", required=True, help="one or more task names")
     s.add_argument("--stage", choices=["demos", "eval"], default=None,
-                   help="planner experts only (ant, walker, humanoid): collect only this "
+                   help="planner experts only (--variant planner of ant, walker, humanoid): "
+                        "collect only this "
                         "stage's episodes; run the two stages as two processes side by side, "
                         "then once without --stage to combine them")
     s.add_argument("--first", type=positive_int, default=None,
@@ -69,7 +70,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="planner experts: mujoco.rollout threads (results do not depend on it)")
     s.add_argument("--variant", default=None,
                    help="another expert of the task: 'coin' (reacher2, reacher4, halfcheetah2: "
-                        "the mode drawn by a hidden coin per episode)")
+                        "the mode drawn by a hidden coin per episode), 'planner' (walker, "
+                        "ant, humanoid: the sampling planner, minutes per episode)")
     s.set_defaults(func=cmd_demos)
     s = sub.add_parser("expert", help="train or evaluate a task's expert",
                        description="expert train: train (or resume from its checkpoint) the PPO "

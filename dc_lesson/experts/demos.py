@@ -11,7 +11,9 @@ Seeds: demonstrations use episode seeds from ``DEMO_SEED``, the expert's evaluat
 ``EXPERT_EVAL_SEED`` and the random policy's from ``RANDOM_EVAL_SEED``, so the three sets of
 episodes start from different initial states.
 
-A planner expert (``dc_lesson.experts.planner``) costs minutes of CPU per episode, so for it
+A planner expert (``dc_lesson.experts.planner``, the variant ``"planner"`` of walker, ant and
+humanoid: ``dc-lesson demos --task walker --variant planner``) costs minutes of CPU per
+episode, so for it
 the expert's return is measured over the 25 demonstrations plus 25 further episodes (50 in
 all, as for every task), not over 50 further ones; the manifest says which.  Its episodes are
 collected a few at a time, each finished group saved atomically under ``data/demos/partial/``
@@ -171,18 +173,18 @@ def make_demos(task: str, command: str = "", directory=None, n_demos: int = N_DE
                              f"got stage {stage!r}, first {first!r}")
         if stage in (None, "demos"):
             demos = collect_resumable(task, expert, n_demos, DEMO_SEED,
-                                      part / f"{task}-demos.npz", fingerprint,
+                                      part / f"{name}-demos.npz", fingerprint,
                                       progress=progress)
         if first is not None:
             collect_resumable(task, expert, n_more - first, EXPERT_EVAL_SEED,
-                              part / f"{task}-eval-from{first}.npz", fingerprint,
+                              part / f"{name}-eval-from{first}.npz", fingerprint,
                               progress=progress, first=first)
             return None
         if stage in (None, "eval"):
             # A finished tail (episodes k..end, from a `first=k` process) shortens the
             # sequential part to episodes 0..k-1.
             split, tail = n_more, []
-            for f in sorted(part.glob(f"{task}-eval-from*.npz")):
+            for f in sorted(part.glob(f"{name}-eval-from*.npz")):
                 k = f.stem.rsplit("from", 1)[1]
                 if not k.isdigit():
                     continue   # not a file this code wrote
@@ -192,7 +194,7 @@ def make_demos(task: str, command: str = "", directory=None, n_demos: int = N_DE
                 if 0 < k < split and len(eps) == n_more - k:
                     split, tail = k, eps
             more = collect_resumable(task, expert, split, EXPERT_EVAL_SEED,
-                                     part / f"{task}-eval.npz", fingerprint,
+                                     part / f"{name}-eval.npz", fingerprint,
                                      progress=progress) + tail
         if stage is not None:
             return None
@@ -237,6 +239,7 @@ def make_demos(task: str, command: str = "", directory=None, n_demos: int = N_DE
             manifest["tasks"].items(),
             key=lambda kv: (_tasks.NAMES.index(kv[1].get("task", kv[0])), kv[0])))
         atomic_write_text(directory / "manifest.json", json.dumps(manifest, indent=1) + "\n")
-    for leftover in (directory / "partial").glob(f"{task}-*"):
-        leftover.unlink()      # the finished file replaces the partial ones
+    for pattern in (f"{name}-demos.*", f"{name}-eval.*", f"{name}-eval-from*"):
+        for leftover in (directory / "partial").glob(pattern):
+            leftover.unlink()      # the finished file replaces the partial ones
     return entry
