@@ -231,24 +231,27 @@ print("replay identical:", np.array_equal(obs, traj.observations)
 #   start states, so each runs about half the episodes; `halfcheetah2-coin` flips a coin). The hopper's PPO trains as Gym's does, with a
 #   fallen hopper ending its training episode (`PPOConfig(terminate="hopper-fall")`, for
 #   training only: the task itself never ends early).
-# * `walker`, `ant` and `humanoid`: **soft actor-critic (SAC), distilled into the learners'
-#   own network**. SAC (`dc_lesson.experts.sac`, CleanRL's loop: a tanh-squashed Gaussian
-#   actor, twin Q networks with Polyak-averaged targets, a tuned entropy temperature) reuses
-#   every transition many times, which is what a 2-core machine needs; our PPO stayed far
-#   below these floors after 5M steps (the curves below). The SAC actor is then copied into
-#   a `GaussianPolicy` of exactly BC's shape (64x64 tanh, an observation normaliser) by
-#   DAgger: roll out the student, label the states it visits with the SAC actor's action,
-#   refit on everything labelled so far (`dc_lesson.experts.network.distil`). So every
-#   expert of these tasks is a Markov policy in the class every learner fits, as the
-#   paper's TRPO experts were. The humanoid's SAC trains with a fallen humanoid ending its
-#   training episode (head below 0.9 m; for training only, as the hopper's PPO).
-#
-#   Their first experts were a **planner on the true simulator**, kept as the variant
-#   `planner` (`load_expert("walker", "planner")`, `data/demos/walker-planner.npz`):
-#   predictive sampling keeps a plan for the next half second and at every control step
-#   tries noisy variants of it on a copy of the simulator, keeping the best. It meets the
-#   floors, but it is no Markov policy (its action depends on random plans, not only on the
-#   state), and BC cannot clone it: see the floor table below.
+# * `walker` and `ant`: **soft actor-critic (SAC), distilled into the learners' own
+#   network**. SAC (`dc_lesson.experts.sac`, CleanRL's loop: a tanh-squashed Gaussian actor,
+#   twin Q networks with Polyak-averaged targets, a tuned entropy temperature) reuses every
+#   transition many times, which is what a 2-core machine needs; our PPO stayed far below
+#   these floors after 5M steps (the curves below). The SAC actor is then copied into a
+#   `GaussianPolicy` of exactly BC's shape (64x64 tanh, an observation normaliser) by DAgger:
+#   roll out the student, label the states it visits with the SAC actor's action, refit on
+#   everything labelled so far (`dc_lesson.experts.network.distil`). So these experts are
+#   Markov policies in the class every learner fits, as the paper's TRPO experts were.
+# * `humanoid`: still a **planner on the true simulator**, the first expert of all three
+#   (on walker and ant it is kept as the variant `planner`: `load_expert("walker",
+#   "planner")`, `data/demos/walker-planner.npz`). Predictive sampling keeps a plan for the
+#   next half second and at every control step tries 127 noisy variants of it on a copy of
+#   the simulator, keeping the best; the humanoid plans with its walk reward plus a shaped
+#   "stay tall and upright" term (`planner.PLANNING_REWARDS`: the walk reward is almost zero
+#   whenever the head is low, so a falling planner sees no way back up) and is judged on the
+#   task's own reward. It meets the floor, but it is no Markov policy (its action depends on
+#   random plans, not only on the state), so BC cannot clone it (the floor table below). Its
+#   SAC run, with a fallen humanoid ending the training episode, stayed far below the floor
+#   within the steps one session affords (the curves below), so the humanoid has no
+#   imitable expert yet.
 #
 # The table lists, for each task, the expert, its return over 50 episodes, the random
 # policy's, and the mode shares (tasks without demonstrations yet say so).
@@ -357,35 +360,46 @@ if missed:
 # early ones are short) within a million, a quarter of an hour of this CPU; without that
 # training-only termination, PPO's early falls left most of every 1000-step episode lying
 # still. The walker's and the ant's PPO runs flatten out far below their floors after 5M
-# steps (hours of this CPU). Bottom, SAC on those tasks (and the humanoid): each point is
-# the return of two evaluation episodes with the actor's mean action, against environment
-# steps; the distilled network's own return is in the table above.
+# steps (hours of this CPU). Bottom, SAC on those tasks and the humanoid: each point is the
+# return of two evaluation episodes with the actor's mean action, against environment steps
+# (the distilled networks' own returns are in the table above).
 
 # %%
 from dc_lesson.experts import network, trained
 
-rows_of_units = [["halfcheetah", "halfcheetah-backward", "hopper", "walker-ppo", "ant-ppo"],
-                 [u for u in network.SAC_RECIPES if network.paths(u)["meta"].exists()]]
+ppo_units = ["halfcheetah", "halfcheetah-backward", "hopper", "walker-ppo", "ant-ppo"]
+sac_tasks = [t for t in network.SAC_RECIPES if network.paths(t)["sac_meta"].exists()]
 fig, axes = plt.subplots(2, 5, figsize=(13, 5.4), sharey=True)
-for row, units in zip(axes, rows_of_units):
-    for ax in row[len(units):]:
-        ax.axis("off")
-    for ax, unit in zip(row, units):
-        curve = trained.learning_curve(unit)
-        ax.plot(curve["steps"] / 1e6, curve["episode_return"], lw=1)
-        ax.axhline(floors.FLOORS[curve["task"]], ls="--", c="grey", lw=1)
-        if unit == "hopper":   # standing still earns a quarter of the reward at every step
-            still = 0.25 * tasks.spec("hopper").horizon
-            ax.axhline(still, ls=":", c="C3", lw=1)
-            ax.text(0.05, still + 30, "standing still", fontsize=8, color="C3")
-        how = "PPO" if unit in trained.RECIPES else "SAC"
-        ax.set_title(f"{unit} ({how})\n{curve['training_seconds'] / 3600:.1f} h of training",
-                     fontsize=9)
-        ax.set_xlabel("million steps")
+for ax, unit in zip(axes[0], ppo_units):
+    curve = trained.learning_curve(unit)
+    ax.plot(curve["steps"] / 1e6, curve["episode_return"], lw=1)
+    ax.axhline(floors.FLOORS[curve["task"]], ls="--", c="grey", lw=1)
+    if unit == "hopper":   # standing still earns a quarter of the reward at every step
+        still = 0.25 * tasks.spec("hopper").horizon
+        ax.axhline(still, ls=":", c="C3", lw=1)
+        ax.text(0.05, still + 30, "standing still", fontsize=8, color="C3")
+    ax.set_title(f"{unit} (PPO)\n{curve['training_seconds'] / 3600:.1f} h of training",
+                 fontsize=9)
+for ax, task in zip(axes[1], sac_tasks):
+    curve = network.sac_curve(task)
+    ax.plot(curve["steps"] / 1e6, curve["eval_return"], lw=1, c="C2")
+    ax.axhline(floors.FLOORS[task], ls="--", c="grey", lw=1)
+    ax.set_title(f"{task} (SAC)\n{curve['training_seconds'] / 3600:.1f} h of training",
+                 fontsize=9)
+for ax in axes[1][len(sac_tasks):]:
+    ax.axis("off")
+for ax in axes.flat:
+    ax.set_xlabel("million steps")
+for row in axes:
     row[0].set_ylabel("episode return")
 axes[0, 0].set_ylim(0, 1000)
 plt.tight_layout()
 plt.show()
+display(Markdown("; ".join(
+    f"{t}: SAC's best evaluation return {c['eval_return'].max():.0f} (floor "
+    f"{floors.FLOORS[t]:.0f}) in {c['steps'][-1]:,} steps"
+    + ("" if c["done"] else f" of the recipe's {c['total_steps']:,} (the run was cut there)")
+    for t, c in ((t, network.sac_curve(t)) for t in sac_tasks)) + "."))
 
 # %% [markdown]
 # Every expert, seen through its first demonstration: frames replayed from the stored

@@ -17,8 +17,8 @@ list (``tests/test_layers.py`` checks it):
 * ``algorithms``: the learners, one module each (``algorithms.bc``, ``algorithms.ppo``,
   ``algorithms.gail``, ``algorithms.dc``), one ``train`` interface (``algorithms.base``) and
   the registry ``algorithms.ALGORITHMS``;
-* ``experts``: the scripted, PPO-trained and planner experts, their floors, making the
-  demonstrations;
+* ``experts``: the scripted, PPO-trained and SAC-distilled experts (the sampling planner as a
+  variant), their floors, making the demonstrations;
 * ``evaluation``: ``evaluation.metrics`` (EMD, KL and reverse KL, scaled return) and
   ``evaluation.evaluate`` (``evaluate_policy``, one way to evaluate every learner);
 * ``viz``: frames, videos and figures;

@@ -52,25 +52,33 @@ def test_dagger_fits_the_teacher_and_repeats_itself():
     assert err < 0.2 * base, (err, base)
 
 
-def test_the_experts_are_the_networks_and_the_planner_a_variant():
-    for task in network.SAC_RECIPES:
-        assert VARIANTS[task] == ("planner",)
-        if not network.paths(task)["policy"].exists():
-            continue   # not trained yet (the note says which)
-        policy, info = load_expert(task)
-        assert info["name"] == "SAC, distilled by DAgger" and info["kind"] == "trained"
-        net = trained.load_unit(task)
-        assert isinstance(net, GaussianPolicy)
-        assert net.meta["student_return"]["mean"] > 0
-    # the planner is reachable, by name, and only as the variant
-    _, info = load_expert("walker", "planner")
-    assert info["kind"] == "planner"
+def test_each_task_has_its_default_expert_and_the_other_as_its_variant():
+    from dc_lesson.experts import DEFAULT_EXPERT, floors
+    assert set(DEFAULT_EXPERT) == set(network.SAC_RECIPES)
+    for task, kind in DEFAULT_EXPERT.items():
+        other = "planner" if kind == "network" else "network"
+        assert VARIANTS[task] == (other,)
+        for variant, expect in ((None, kind), (other, other)):
+            if expect == "network" and not network.paths(task)["policy"].exists():
+                continue   # not trained yet (the note says which)
+            policy, info = load_expert(task, variant)
+            if expect == "planner":
+                assert info["kind"] == "planner"
+                continue
+            assert info["name"] == "SAC, distilled by DAgger" and info["kind"] == "trained"
+            net = trained.load_unit(task)
+            assert isinstance(net, GaussianPolicy)
+            # a network is the default only where it meets the task's floor
+            assert (net.meta["student_return"]["mean"] >= floors.FLOORS[task]) == \
+                (kind == "network")
     with pytest.raises(ValueError, match="no expert variant 'planner'"):
         load_expert("hopper", "planner")
 
 
 def test_the_planner_demonstrations_stay_under_their_variant():
-    for task in network.SAC_RECIPES:
+    from dc_lesson.experts import DEFAULT_EXPERT
+    for task in [t for t, kind in DEFAULT_EXPERT.items() if kind == "network"]:
+        assert data.manifest_entry(task)["expert"]["name"] == "SAC, distilled by DAgger"
         entry = data.manifest_entry(task, variant="planner")
         assert entry["expert"]["kind"] == "planner" and entry["variant"] == "planner"
         assert entry["file"] == f"{task}-planner.npz"

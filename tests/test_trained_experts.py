@@ -9,12 +9,16 @@ from dc_lesson.experts import load_expert, trained
 
 
 def test_every_locomotion_task_has_a_recipe_on_its_own_task():
+    from dc_lesson.experts import network
     for task, units in trained.EXPERT_UNITS.items():
         tasks.check_name(task)
-        for unit in units:
-            assert unit in trained.RECIPES
+        for unit in units:   # PPO's recipe, or (walker, ant, humanoid) SAC's and DAgger's
+            assert unit in trained.RECIPES or unit in network.SAC_RECIPES
+            if unit in trained.RECIPES:
+                assert task.startswith(trained.RECIPES[unit].task[:len("halfcheetah")])
     assert set(trained.EXPERT_UNITS) | {"cartpole", "reacher1", "reacher2", "reacher4"} == \
         set(tasks.NAMES)
+    assert set(trained.PPO_TASKS) | set(network.SAC_RECIPES) == set(trained.EXPERT_UNITS)
 
 
 def test_coin_flip_mixture_follows_the_episode_seed_and_is_fair():
@@ -81,7 +85,7 @@ def test_load_expert_covers_every_task_or_says_how_to_make_it():
 def test_stored_learning_curves_match_their_training_records():
     # The book plots these; a unit's curve must end at the steps its record says it trained.
     import json
-    for unit in ("halfcheetah", "hopper", "walker", "ant"):
+    for unit in ("halfcheetah", "hopper", "walker-ppo", "ant-ppo"):
         curve = trained.learning_curve(unit)
         meta = json.loads(trained.unit_paths(unit)["meta"].read_text())
         assert curve["task"] == trained.RECIPES[unit].task
@@ -89,13 +93,13 @@ def test_stored_learning_curves_match_their_training_records():
         assert curve["steps"][-1] <= meta["steps"] == meta["config"]["total_steps"] // 4096 * 4096
         assert np.isfinite(curve["episode_return"]).all()
     with pytest.raises(trained.ExpertMissing, match="train_unit"):
-        trained.learning_curve("humanoid")
+        trained.learning_curve("humanoid-ppo")
 
 
 def test_chapter_00s_reading_of_the_learning_curves_holds():
     # Chapter 00 says: the cheetahs and the hopper clear their floors within a million steps
     # (the hopper's training episodes end at a fall, for training only); the walker's and the
-    # ant's runs stay below theirs.
+    # ant's PPO runs stay below theirs after 5M steps, and their SAC runs reach them.
     from dc_lesson.experts import floors
 
     def curve(unit):
@@ -105,9 +109,14 @@ def test_chapter_00s_reading_of_the_learning_curves_holds():
     for unit in ("halfcheetah", "halfcheetah-backward", "hopper"):
         s, r, floor = curve(unit)
         assert (r[s <= 1_000_000] >= floor).any()
-    for unit in ("walker", "ant"):
+    for unit in ("walker-ppo", "ant-ppo"):
         s, r, floor = curve(unit)
         assert s[-1] >= 4_900_000 and r.max() < floor
+    from dc_lesson.experts import DEFAULT_EXPERT, network
+    for task in ("walker", "ant"):
+        c = network.sac_curve(task)
+        assert c["done"] and c["eval_return"].max() >= floors.FLOORS[task]
+        assert DEFAULT_EXPERT[task] == "network"
     assert trained.RECIPES["hopper"].config.terminate == "hopper-fall"
 
 

@@ -112,7 +112,7 @@ def cmd_expert(args) -> int:
 
 def _expert(args) -> int:
     from dc_lesson.data import rollout
-    from dc_lesson.experts import load_expert, network, trained
+    from dc_lesson.experts import DEFAULT_EXPERT, load_expert, network, trained
     if args.what == "eval" and (args.steps is not None or args.restart
                                 or args.hours is not None):
         raise UsageError("--steps, --restart and --hours apply to expert train, not expert eval")
@@ -148,7 +148,10 @@ def _expert(args) -> int:
                 print(f"dc-lesson: {name} has a scripted expert; nothing to train",
                       file=sys.stderr)
                 continue
-        expert, info = load_expert(name)
+        # after training a network expert, that network (on humanoid it is not the default)
+        trained_net = args.what == "train" and name in network.SAC_RECIPES
+        expert, info = load_expert(name, "network" if trained_net and
+                                   DEFAULT_EXPERT[name] != "network" else None)
         r = rollout.returns(rollout.collect(name, expert, args.episodes, seed=1))
         print(f"{name}: expert ({info['name']}) return {r.mean():.1f} ± {r.std():.1f} over "
               f"{len(r)} episodes")

@@ -227,3 +227,20 @@ def distil_expert(task: str, config: DistilConfig = DISTIL, command: str = "",
         progress(f"{task}: SAC actor {teacher_r.mean():.1f}, distilled GaussianPolicy "
                  f"{student_r.mean():.1f} over {n} episodes (seed {EVAL_SEED})")
     return meta
+
+
+def sac_curve(task: str, directory=None) -> dict:
+    """The stored SAC run of ``task`` (``TASK-sac.json``): ``steps``, ``eval_return`` (the mean
+    action's return over the recipe's evaluation episodes at each log row), the wall time,
+    and whether the run reached its recipe's steps (``done``)."""
+    path = paths(task, directory)["sac_meta"]
+    if not path.exists():
+        raise FileNotFoundError(f"no SAC record {path}; train it with: dc-lesson expert "
+                                f"train --task {task}")
+    meta = json.loads(_storage.read_text(path, "SAC record",
+                                         f"rerun: dc-lesson expert train --task {task}"))
+    log = meta["log"]
+    return {"task": task, "steps": np.array([r["steps"] for r in log]),
+            "eval_return": np.array([r["eval_return"] for r in log]),
+            "training_seconds": meta["training_seconds"], "done": meta["done"],
+            "total_steps": meta["config"]["total_steps"]}
