@@ -35,6 +35,7 @@ import numpy as np
 import torch
 
 from dc_lesson import progress as _progress
+from dc_lesson.algorithms import base as _base
 from dc_lesson.algorithms import ppo as _ppo
 from dc_lesson.algorithms.base import TrainResult, load_run, save_run
 from dc_lesson.nn.policies import GaussianPolicy, ValueNetwork
@@ -68,8 +69,12 @@ class PPOImitationConfig:
         return dataclasses.replace(self, ppo=dataclasses.replace(self.ppo,
                                                                  total_steps=int(total_steps)))
 
+    # knobs added after studies' cells were listed: named in the JSON only when set (GAIL
+    # has had start_log_std from its first cells, so its JSON always names it)
+    LATER_KNOBS = ("start_log_std",)
+
     def to_dict(self) -> dict:
-        d = dataclasses.asdict(self)
+        d = _base.unset_dropped(dataclasses.asdict(self), self.LATER_KNOBS)
         d["ppo"] = json.loads(self.ppo_config.to_json())
         return json.loads(json.dumps(d))
 

@@ -45,6 +45,30 @@ class TrainResult:
     algorithm: str = ""
 
 
+# The one exploration rule of every RL learner's warm start (issue 38): the start's log-std is
+# set to this before training. Measured (chapter 05's competence study; December 2026 probe,
+# cartpole from a perfect BC start, 20,000 interactions, 3 seeds): at the BC warm start's
+# default -0.5 (std 0.61), GPRIL lost its start on 3 of 3 seeds and NDI on 1 of 3; at -2
+# (std 0.14, GAIL's tuned value since round 2) every learner kept it on 3 of 3.
+START_LOG_STD = -2.0
+
+
+def set_start_noise(policy, log_std: float | None) -> None:
+    """Sets a given start policy's exploration noise (its log-std) to ``log_std`` in place;
+    nothing for None (the start's own noise is kept), no policy, or a mixture (which has its
+    own spreads). Every RL learner's ``start_log_std`` field goes through here."""
+    if policy is None or log_std is None or not getattr(policy, "gaussian", False):
+        return
+    with torch.no_grad():
+        policy.log_std.fill_(float(log_std))
+
+
+def unset_dropped(d: dict, names=("start_log_std",)) -> dict:
+    """``d`` without the fields in ``names`` whose value is None: a knob added after a study's
+    cells were listed names them only when set, so the stored cells keep their identity."""
+    return {k: v for k, v in d.items() if not (k in names and v is None)}
+
+
 class LearnerInputError(ValueError):
     """Inputs a learner cannot train with (a policy or demonstrations of another task, ...)."""
 

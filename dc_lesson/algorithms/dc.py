@@ -127,6 +127,7 @@ from dc_lesson import progress as _progress
 from dc_lesson import timing as _timing
 from dc_lesson.algorithms import _dc_disc
 from dc_lesson.algorithms import bc as _bc
+from dc_lesson.algorithms import base as _base
 from dc_lesson.algorithms.base import TrainResult, check_inputs, checkpoint_fix
 from dc_lesson.checks import check_fields
 from dc_lesson.density import softflow as _softflow
@@ -194,6 +195,8 @@ class DCConfig:
     # ``max_grad_norm`` and ``seed`` override ``ppo``'s (one rate for both copies), its
     # learning rate is not annealed, and ``ppo.total_steps`` is unused (loops x iterations).
     ppo: PPOConfig = dataclasses.field(default_factory=lambda: _DC_PPO)
+    start_log_std: float | None = None   # a given (warm) start's log-std is set to this
+    #                              first (None: kept); base.START_LOG_STD is the shared rule
     seed: int = 0
 
     def __post_init__(self):
@@ -257,7 +260,7 @@ class DCConfig:
         return self.loops * self.iterations * self.batch_size + refits * self.n_envs * horizon
 
     def to_json(self) -> str:
-        d = dataclasses.asdict(self)
+        d = _base.unset_dropped(dataclasses.asdict(self))
         d["ppo"] = json.loads(self.ppo_config().to_json())
         return json.dumps(d, sort_keys=True)
 
@@ -545,6 +548,7 @@ def train(task: str, demos: Demonstrations, config: DCConfig = DCConfig(), *,
     check_inputs(task, demos, policy)
     if policy is None:
         policy = _bc.warm_start_policy(demos, config.seed)
+    _base.set_start_noise(policy, config.start_log_std)
     flow_seed, init_seed, sample_seed, env_seed = (
         int(s) for s in np.random.SeedSequence(config.seed).generate_state(4))
     with torch.random.fork_rng(devices=[]):

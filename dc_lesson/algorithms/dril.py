@@ -71,6 +71,7 @@ from dc_lesson.checks import check_fields
 from dc_lesson.algorithms import _reward_ppo
 from dc_lesson.algorithms import bc as _bc
 from dc_lesson.algorithms import ppo as _ppo
+from dc_lesson.algorithms import base as _base
 from dc_lesson.algorithms.base import TrainResult, check_inputs
 from dc_lesson.nn.policies import ACTION_HIGH, ACTION_LOW, GaussianPolicy
 
@@ -89,6 +90,8 @@ class DRILConfig(_reward_ppo.PPOImitationConfig):
     bc_batch: int = 256          # expert pairs per such step
     warm_start_epochs: int = 200  # epoch limit of the BC warm start (policy=None)
     value_warmup: int = 2        # first iterations that train only the critic
+    start_log_std: float | None = None   # a given (warm) start's log-std is set to this
+    #                              first (None: kept); base.START_LOG_STD is the shared rule
     seed: int = 0
 
     def __post_init__(self):
@@ -190,6 +193,7 @@ def train(task: str, demos, config: DRILConfig = DRILConfig(), *,
     threshold = cost_threshold(members, e_obs, e_act, config.quantile)
     if policy is None:
         policy = _bc.warm_start_policy(demos, config.seed, max_epochs=config.warm_start_epochs)
+    _base.set_start_noise(policy, config.start_log_std)
     policy, value_fn = _reward_ppo.make_networks(spec, pcfg, e_obs, policy, init_seed)
     bc_opt = torch.optim.AdamW(policy.mean_net.parameters(), lr=pcfg.lr)
     bc_gen = torch.Generator().manual_seed(bc_seed)

@@ -136,6 +136,8 @@ class GAILConfig(_reward_ppo.PPOImitationConfig):
     """Every knob of GAIL.  PPO's own knobs (and the run's length, ``ppo.total_steps``) live in
     ``ppo``; ``seed`` here is the run's one seed (``ppo.seed`` is ignored)."""
 
+    LATER_KNOBS = ()   # start_log_std was GAIL's from its first cells: always in its JSON
+
     ppo: _ppo.PPOConfig = dataclasses.field(default_factory=_gail_ppo_default)
     disc_hidden: tuple[int, ...] = (64, 64)   # hidden layer sizes of the discriminator MLP
     disc_activation: str = "tanh"   # its activation

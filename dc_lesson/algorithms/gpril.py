@@ -83,6 +83,7 @@ from dc_lesson import tasks as _tasks
 from dc_lesson.checks import check_fields
 from dc_lesson.algorithms import bc as _bc
 from dc_lesson.algorithms import ppo as _ppo
+from dc_lesson.algorithms import base as _base
 from dc_lesson.algorithms.base import TrainResult, check_inputs, load_run, save_run
 from dc_lesson.nn.policies import ACTION_HIGH, ACTION_LOW, GaussianPolicy
 
@@ -110,6 +111,8 @@ class GPRILConfig:
     lr: float = 1e-3             # the policy's AdamW learning rate
     hidden: tuple[int, ...] = (64, 64)
     log_std_init: float = -0.5
+    start_log_std: float | None = None   # a given (warm) start's log-std is set to this
+    #                              first (None: kept); base.START_LOG_STD is the shared rule
     seed: int = 0
 
     def __post_init__(self):
@@ -139,7 +142,7 @@ class GPRILConfig:
         return dataclasses.replace(self, total_steps=int(total_steps))
 
     def to_dict(self) -> dict:
-        return json.loads(json.dumps(dataclasses.asdict(self)))
+        return json.loads(json.dumps(_base.unset_dropped(dataclasses.asdict(self))))
 
     def to_json(self) -> str:
         return json.dumps(self.to_dict(), sort_keys=True)
@@ -347,6 +350,7 @@ def train(task: str, demos, config: GPRILConfig = GPRILConfig(), *,
     init_seed, sample_seed, env_seed, model_seed, expert_seed = (
         int(s) for s in np.random.SeedSequence(config.seed).generate_state(5))
     e_obs, e_act = _bc.pairs(demos)
+    _base.set_start_noise(policy, config.start_log_std)   # a given start's noise
     with torch.random.fork_rng(devices=[]):
         torch.manual_seed(init_seed)
         if policy is None:

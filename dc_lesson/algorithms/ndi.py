@@ -73,6 +73,7 @@ from dc_lesson.checks import check_fields
 from dc_lesson.algorithms import _reward_ppo
 from dc_lesson.algorithms import bc as _bc
 from dc_lesson.algorithms import ppo as _ppo
+from dc_lesson.algorithms import base as _base
 from dc_lesson.algorithms.base import TrainResult, check_inputs
 from dc_lesson.algorithms.dc import RewardScale
 from dc_lesson.density import softflow as _softflow
@@ -96,6 +97,8 @@ class NDIConfig(_reward_ppo.PPOImitationConfig):
     knn_k: int = 5               # neighbours of the entropy estimate
     value_warmup: int = 2        # first iterations that train only the critic
     bc_warm_start: bool = True   # the benchmark starts from bc.warm_start
+    start_log_std: float | None = None   # a given (warm) start's log-std is set to this
+    #                              first (None: kept); base.START_LOG_STD is the shared rule
     seed: int = 0
 
     def __post_init__(self):
@@ -224,6 +227,7 @@ def train(task: str, demos, config: NDIConfig = NDIConfig(), *,
         scale = RewardScale.from_expert(log_density(flow, e_obs[i], e_act[i]).numpy())
     reward = Reward(flow, scale, config.entropy_coef, e_obs.mean(0),
                     e_obs.std(0).clamp_min(1e-3), config.knn_k)
+    _base.set_start_noise(policy, config.start_log_std)   # a given start's noise
     policy, value_fn = _reward_ppo.make_networks(spec, pcfg, e_obs, policy, init_seed)
     hooks = _reward_ppo.Hooks("ndi", reward.of_batch, models={"flow": flow})
     return _reward_ppo.run(task, config, hooks, policy, value_fn, sample_seed, env_seed,

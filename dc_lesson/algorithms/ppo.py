@@ -58,6 +58,7 @@ import torch
 from dc_lesson import progress as _progress
 from dc_lesson import timing as _timing
 from dc_lesson import tasks as _tasks
+from dc_lesson.algorithms import base as _base
 from dc_lesson.algorithms.base import (TrainResult, check_checkpoint, check_inputs, load_run,
                                        save_run)
 from dc_lesson.checks import check_fields
@@ -93,6 +94,8 @@ class PPOConfig:
     weight_decay: float = 0.0    # AdamW's decoupled weight decay
     hidden: tuple[int, ...] = (64, 64)   # hidden layer sizes of both networks
     log_std_init: float = -0.5   # initial log standard deviation of the actions (CleanRL: 0)
+    start_log_std: float | None = None   # a given (warm) start's log-std is set to this
+    #                              first (None: kept); base.START_LOG_STD is the shared rule
     total_steps: int = 1_000_000     # environment steps over the run (all environments)
     episode_steps: int | None = None  # cut training episodes after this many steps (None: the
     #                                   task's horizon). A cut is a time limit, so its value is
@@ -125,7 +128,7 @@ class PPOConfig:
         return self.total_steps // self.batch_size
 
     def to_json(self) -> str:
-        return json.dumps(dataclasses.asdict(self), sort_keys=True)
+        return json.dumps(_base.unset_dropped(dataclasses.asdict(self)), sort_keys=True)
 
 
 # -- environments --------------------------------------------------------------------------------
@@ -581,6 +584,12 @@ def train(task: str, demos=None, config: PPOConfig = PPOConfig(), *,
     """
     spec = _tasks.spec(task)
     check_inputs(task, None, policy)
+    # A given start keeps its own input scale: its normaliser is frozen and the critic reads
+    # it. (Merging the rollouts' statistics into it changed the function the start computes:
+    # a perfect cartpole BC start fell to about 0 within 20,000 interactions on 3 of 3 seeds,
+    # and kept 1.00 on 2 of 3 with it frozen; issue 38's probe.)
+    frozen_norm = policy is not None and policy.obs_norm is not None
+    _base.set_start_noise(policy, config.start_log_std)
     init_seed, sample_seed, env_seed = (
         int(s) for s in np.random.SeedSequence(config.seed).generate_state(3))
     # Seed the initialisation without changing the caller's global torch RNG.
@@ -590,6 +599,8 @@ def train(task: str, demos=None, config: PPOConfig = PPOConfig(), *,
             policy = GaussianPolicy(spec.obs_dim, spec.act_dim, config.hidden,
                                     log_std_init=config.log_std_init, norm_obs=config.norm_obs)
         value_fn = ValueNetwork(spec.obs_dim, config.hidden, norm_obs=config.norm_obs)
+    if frozen_norm and value_fn.obs_norm is not None:
+        value_fn.obs_norm.load_state_dict(policy.obs_norm.state_dict())
     optimizer = _fast.adamw([*policy.parameters(), *value_fn.parameters()],
                                   lr=config.lr, eps=1e-5, weight_decay=config.weight_decay)
     generator = torch.Generator().manual_seed(sample_seed)
@@ -622,8 +633,9 @@ def train(task: str, demos=None, config: PPOConfig = PPOConfig(), *,
         terms = ppo_update(policy, value_fn, optimizer, batch, config, generator)
         # New observation statistics only now, so the update saw the inputs the batch was
         # collected with (its stored log-probabilities were computed on those).
-        policy.update_obs_norm(batch.obs)
-        value_fn.update_obs_norm(batch.obs)
+        if not frozen_norm:
+            policy.update_obs_norm(batch.obs)
+            value_fn.update_obs_norm(batch.obs)
 
         if batch.episode_returns:
             last_return = float(np.mean(batch.episode_returns))

@@ -77,6 +77,7 @@ from dc_lesson.checks import check_fields
 from dc_lesson.algorithms import _reward_ppo
 from dc_lesson.algorithms import bc as _bc
 from dc_lesson.algorithms import ppo as _ppo
+from dc_lesson.algorithms import base as _base
 from dc_lesson.algorithms.base import TrainResult, check_inputs
 from dc_lesson.nn.policies import ACTION_HIGH, ACTION_LOW, GaussianPolicy
 
@@ -94,6 +95,8 @@ class PWILConfig(_reward_ppo.PPOImitationConfig):
     value_warmup: int = 2        # first iterations that train only the critic
     bc_warm_start: bool = True   # the benchmark starts from bc.warm_start (train() itself
     #                              starts from the policy it is given)
+    start_log_std: float | None = None   # a given (warm) start's log-std is set to this
+    #                              first (None: kept); base.START_LOG_STD is the shared rule
     seed: int = 0
 
     def __post_init__(self):
@@ -234,6 +237,7 @@ def train(task: str, demos, config: PWILConfig = PWILConfig(), *,
     init_seed, sample_seed, env_seed, atom_seed = (
         int(s) for s in np.random.SeedSequence(config.seed).generate_state(4))
     e_obs, _ = _bc.pairs(demos)
+    _base.set_start_noise(policy, config.start_log_std)   # a given start's noise
     policy, value_fn = _reward_ppo.make_networks(spec, pcfg, e_obs, policy, init_seed)
     atoms, mean, std = expert_atoms(demos, config, atom_seed)
     horizon = min(pcfg.episode_steps or spec.horizon, spec.horizon)

@@ -39,6 +39,7 @@ import numpy as np
 from dc_lesson import algorithms as _algorithms
 from dc_lesson import budget as _budget
 from dc_lesson import evaluation as _evaluation
+from dc_lesson.algorithms import base as _base
 from dc_lesson.algorithms import bc as _bc
 from dc_lesson.data import store as _store
 from dc_lesson.experiments import cells, protocol
@@ -61,8 +62,12 @@ def _steps(b, part: str) -> int:
 
 
 def learner_config(learner: str, b, part: str, seed: int):
+    """The learner's preset for the part's interactions, its start's exploration noise set by
+    the one rule every RL learner shares (``algorithms.base.START_LOG_STD``, GAIL's tuned
+    -2; the grids adopt it when they are run again)."""
     sized = dataclasses.replace(b, il_steps=_steps(b, part))
-    return _algorithms.get(learner).preset(sized, seed)
+    return dataclasses.replace(_algorithms.get(learner).preset(sized, seed),
+                               start_log_std=_base.START_LOG_STD)
 
 
 def cells_at(b) -> list[cells.Cell]:
