@@ -164,3 +164,35 @@ def test_ppo_keeps_a_given_start_s_input_scale():
     after = out.policy.obs_norm.state_dict()
     # a broken run merges its rollouts into the start's normaliser (the fault found)
     assert all(torch.equal(before[k], after[k]) for k in before)
+
+
+@pytest.mark.parametrize("learner", ["gail", "pwil", "dc"])
+def test_a_training_only_termination_reaches_every_loop_that_steps_the_task(learner,
+                                                                          monkeypatch):
+    # GAIL's loop, _reward_ppo's (DRIL, PWIL, NDI) and DC's built their environments without
+    # PPO's termination before issue 38: a hopper that fell went on lying there
+    import dataclasses
+    import torch
+    from dc_lesson import algorithms
+    from dc_lesson.algorithms import dc as dc_mod
+    from dc_lesson.algorithms import ppo
+    from dc_lesson.data import store
+    torch.set_num_threads(1)
+    seen = []
+    real = ppo.EnvBatch
+
+    class Recording(real):
+        def __init__(self, task, n_envs, seed, episode_steps=None, terminate=None):
+            seen.append(terminate)
+            super().__init__(task, n_envs, seed, episode_steps, terminate)
+    monkeypatch.setattr(ppo, "EnvBatch", Recording)
+    monkeypatch.setattr(dc_mod, "EnvBatch", Recording)
+    b = dataclasses.replace(budget.get("smoke"), competence_keep_steps=1024)
+    cfg = comp.learner_config(learner, b, "keep", 0, "hopper")
+    assert cfg.ppo.terminate == "hopper-fall"
+    cfg = comp.learner_config(learner, b, "keep", 0, "cartpole")
+    assert cfg.ppo.terminate is None
+    algorithms.get(learner).train("hopper", store.load_demos("hopper", n_trajectories=2),
+                                  comp.learner_config(learner, b, "keep", 0, "hopper"),
+                                  progress=False)
+    assert seen and set(seen) == {"hopper-fall"}

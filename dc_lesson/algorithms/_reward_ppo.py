@@ -146,7 +146,8 @@ def run(task: str, config, hooks: Hooks, policy: GaussianPolicy, value_fn: Value
                                    {"params": list(value_fn.parameters())}],
                                   lr=pcfg.lr, eps=1e-5, weight_decay=pcfg.weight_decay)
     generator = torch.Generator().manual_seed(sample_seed)
-    envs = _ppo.EnvBatch(task, pcfg.n_envs, env_seed, pcfg.episode_steps)
+    # ppo.terminate (a training-only termination, e.g. hopper-fall; None in the presets)
+    envs = _ppo.EnvBatch(task, pcfg.n_envs, env_seed, pcfg.episode_steps, pcfg.terminate)
     networks = {"policy": policy, "value": value_fn, **hooks.networks}
     optimizers = {"optimizer": optimizer, **hooks.optimizers}
     generators = {"generator": generator, **hooks.generators}
@@ -172,7 +173,8 @@ def run(task: str, config, hooks: Hooks, policy: GaussianPolicy, value_fn: Value
         batch = _ppo.collect_batch(envs, policy, value_fn, pcfg.n_steps, generator)
         rewards, reward_terms = hooks.reward(batch)
         batch.advantages, batch.returns = _ppo.compute_gae(
-            rewards, batch.values, batch.next_values, batch.dones, pcfg.gamma, pcfg.gae_lambda)
+            rewards, batch.values, batch.next_values, batch.dones, pcfg.gamma, pcfg.gae_lambda,
+            batch.terminals)
         terms = _ppo.ppo_update(policy, value_fn, optimizer, batch, pcfg, generator)
         extra = hooks.after_update(batch) if hooks.after_update is not None else {}
 

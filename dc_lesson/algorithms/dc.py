@@ -449,7 +449,8 @@ def admm_iteration(learner: Learner, batch, rewards: torch.Tensor, expert_obs: t
     # -- the PPO step (Eq. 4, second term) on pi'
     if c.ppo_step:
         batch.advantages, batch.returns = compute_gae(rewards, batch.values, batch.next_values,
-                                                      batch.dones, c.ppo.gamma, c.ppo.gae_lambda)
+                                                      batch.dones, c.ppo.gamma, c.ppo.gae_lambda,
+                                                      batch.terminals)
         ppo_terms = ppo_update(L.pi_prime, L.value_fn, L.opt_ppo, batch, c.ppo_config(),
                                generator, extra_loss=prox_ppo)
         out.update({f"ppo_{k}": v for k, v in ppo_terms.items()})
@@ -555,7 +556,8 @@ def train(task: str, demos: Demonstrations, config: DCConfig = DCConfig(), *,
         torch.manual_seed(init_seed)
         learner = make_learner(policy, config, spec.obs_dim)
     generator = torch.Generator().manual_seed(sample_seed)
-    envs = EnvBatch(task, config.n_envs, env_seed)
+    # ppo.terminate: a training-only termination (hopper-fall; None in the presets)
+    envs = EnvBatch(task, config.n_envs, env_seed, None, config.ppo.terminate)
     expert_obs, expert_act = expert_pairs(demos)
     expert_states = torch.from_numpy(np.concatenate([t.observations for t in demos.trajectories]))
     flow_config = dataclasses.replace(config.flow_config(), seed=flow_seed)

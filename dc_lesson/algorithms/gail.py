@@ -422,7 +422,8 @@ def train(task: str, demos, config: GAILConfig = GAILConfig(), *,
     disc_optimizer = _fast.adam(disc.parameters(), lr=config.disc_lr)
     generator = torch.Generator().manual_seed(sample_seed)
     disc_generator = torch.Generator().manual_seed(disc_seed)
-    envs = _ppo.EnvBatch(task, pcfg.n_envs, env_seed, pcfg.episode_steps)
+    # ppo.terminate (a training-only termination, e.g. hopper-fall; None in the presets)
+    envs = _ppo.EnvBatch(task, pcfg.n_envs, env_seed, pcfg.episode_steps, pcfg.terminate)
     first, log = 0, []
     if checkpoint is not None and pathlib.Path(checkpoint).exists():
         first, log = load_checkpoint(
@@ -463,7 +464,8 @@ def train(task: str, demos, config: GAILConfig = GAILConfig(), *,
 
         # 4. PPO on that reward
         batch.advantages, batch.returns = _ppo.compute_gae(
-            rewards, batch.values, batch.next_values, batch.dones, pcfg.gamma, pcfg.gae_lambda)
+            rewards, batch.values, batch.next_values, batch.dones, pcfg.gamma, pcfg.gae_lambda,
+            batch.terminals)
         terms = _ppo.ppo_update(policy, value_fn, optimizer, batch, pcfg, generator)
         # (No update_obs_norm here: the normalisers stay at the expert's statistics.)
 
