@@ -537,8 +537,9 @@ def save_checkpoint(path, *, task: str, config: PPOConfig, update: int, policy, 
 
 def _saved_config(ckpt: dict) -> dict:
     # A knob added to PPOConfig after the checkpoint was written takes its default value.
+    # (to_json leaves an unset later knob out, so it is left out here too)
     defaults = {f.name: f.default for f in dataclasses.fields(PPOConfig)}
-    return json.loads(json.dumps({**defaults, **json.loads(ckpt["config"])}))
+    return json.loads(json.dumps(_base.unset_dropped({**defaults, **json.loads(ckpt["config"])})))
 
 
 def load_checkpoint(path, *, task: str, config: PPOConfig, policy, value_fn, optimizer,
