@@ -154,10 +154,10 @@ display(pd.DataFrame(rows).set_index("budget"))
 # ant and humanoid the grid runs BC on every row but the RL learners on the first row only
 # (seed 0, 4 demonstrations), where they were measured at the random level too
 # (`study.rl_cell_kept`; the grid's numbers below). Those rows say so beneath Table III.
-# These three tasks have imitable experts now (SAC distilled into BC's own network, chapter
-# 00, where BC from their demonstrations is measured); this grid was run before them and
-# keeps reading the planner's demonstrations it ran on (`study.DEMO_VARIANT`), until the
-# grid is run again on the network experts.
+# Walker and ant have imitable experts now (SAC distilled into BC's own network, chapter
+# 00, where BC from their demonstrations is measured); the humanoid does not yet. This grid
+# was run before them and keeps reading the planner's demonstrations it ran on
+# (`study.DEMO_VARIANT`), until it is run again on the network experts.
 
 # %%
 display(pd.DataFrame(study.expert_manifest()).set_index("task").rename(columns={
