@@ -98,6 +98,8 @@ class GPRILConfig:
     n_steps: int = 250           # steps per environment per iteration
     total_steps: int = 300_000   # environment interactions over the run
     episode_steps: int | None = None   # cut training episodes (None: the task's horizon)
+    terminate: str | None = None   # a training-only termination (ppo.TERMINATIONS, e.g.
+    #                                hopper-fall): a fallen episode ends, its buffer with it
     gamma: float = 0.9           # the horizon j ~ Geometric(1 - gamma): mean 1 / (1 - gamma)
     buffer_steps: int = 2000     # steps kept per environment (FIFO)
     flow_hidden: tuple[int, ...] = (64, 64)
@@ -142,7 +144,8 @@ class GPRILConfig:
         return dataclasses.replace(self, total_steps=int(total_steps))
 
     def to_dict(self) -> dict:
-        return json.loads(json.dumps(_base.unset_dropped(dataclasses.asdict(self))))
+        return json.loads(json.dumps(_base.unset_dropped(dataclasses.asdict(self),
+                                                         ("start_log_std", "terminate"))))
 
     def to_json(self) -> str:
         return json.dumps(self.to_dict(), sort_keys=True)
@@ -367,7 +370,7 @@ def train(task: str, demos, config: GPRILConfig = GPRILConfig(), *,
     generator = torch.Generator().manual_seed(sample_seed)
     model_gen = torch.Generator().manual_seed(model_seed)
     expert_gen = torch.Generator().manual_seed(expert_seed)
-    envs = _ppo.EnvBatch(task, config.n_envs, env_seed, config.episode_steps)
+    envs = _ppo.EnvBatch(task, config.n_envs, env_seed, config.episode_steps, config.terminate)
     buffer, episode = Buffer(config.buffer_steps), 0
     networks = {"policy": policy, "state_flow": state_flow, "action_flow": action_flow}
     optimizers = {"flow_optimizer": flow_opt, "optimizer": pi_opt}

@@ -68,7 +68,7 @@ def _steps(b, part: str) -> int:
 
 # The training-only termination each task's expert needed (the hopper's PPO: a fallen hopper
 # ends its training episode), for every learner that steps the task through PPO's loop
-# (PPO, GAIL, DRIL, PWIL, NDI, DC; GPRIL's own loop has none yet). Measured (issue 38's
+# (PPO, GAIL, DRIL, PWIL, NDI, DC) or its own (GPRIL: a fall ends the episode). Measured (issue 38's
 # probe, hopper from a perfect BC start, 100,000 interactions, start log-std -2, seeds 0-2):
 # without it PPO ended at 0.95 / 0.30 / 0.22, GAIL 1.00 / 1.00 / 0.31, DC 1.00 / 1.00 / 0.31;
 # with it PPO 0.96 / 1.00 / 0.99, GAIL 0.96 / 0.98 / 1.01, DC 1.00 / 1.00 / 0.93.
@@ -84,10 +84,10 @@ def learner_config(learner: str, b, part: str, seed: int, task: str | None = Non
     cfg = dataclasses.replace(_algorithms.get(learner).preset(sized, seed),
                               start_log_std=_base.START_LOG_STD)
     end = TERMINATE.get(task)
-    if end is not None and learner == "ppo":
-        cfg = dataclasses.replace(cfg, terminate=end)
-    elif end is not None and hasattr(cfg, "ppo"):
+    if end is not None and hasattr(cfg, "ppo"):
         cfg = dataclasses.replace(cfg, ppo=dataclasses.replace(cfg.ppo, terminate=end))
+    elif end is not None:   # PPO itself, GPRIL
+        cfg = dataclasses.replace(cfg, terminate=end)
     return cfg
 
 
