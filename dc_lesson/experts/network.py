@@ -18,9 +18,12 @@ the learner's own class; so are these, made in two stages:
    default shape (64x64 tanh, observation normaliser), so the expert is *exactly* in the class
    every learner fits: the states are visited by the student (round 0: by the SAC actor), the
    labels are the SAC actor's deterministic action tanh(mu(s)) at them (``DISTIL``). The student is
-   the expert ``TASK.pt`` (+ ``.json`` with both stages' recipes and curves).
+   ``TASK.pt`` (+ ``.json`` with both stages' recipes and curves).
 
-The expert acts with the distilled policy's mean action.
+The student is the task's expert where it meets the floor (``experts.DEFAULT_EXPERT``: walker,
+ant); the humanoid's SAC run did not (its curve is in ``humanoid-sac.json``), so there the
+planner stays the expert and the student is the variant ``"network"``. The expert acts with
+the distilled policy's mean action.
 """
 
 from __future__ import annotations

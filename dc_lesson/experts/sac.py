@@ -1,8 +1,9 @@
 """Soft actor-critic (Haarnoja et al. 2018), the off-policy learner behind the network experts
-of ``walker``, ``ant`` and ``humanoid``: ``dc-lesson expert sac --task NAME``.
+of ``walker``, ``ant`` and ``humanoid``: ``dc-lesson expert train --task NAME``
+(:mod:`dc_lesson.experts.network` holds the recipes).
 
 Why SAC here: the library's PPO stayed below the floors on these tasks after 5M interactions
-(walker 328, ant 160; ``data/experts/walker.json``), and the sampling planner that meets them
+(walker 328, ant 160; ``data/experts/walker-ppo.json``), and the sampling planner that meets them
 is not a Markov policy, so BC cannot clone it (scaled return about 0). SAC reuses every
 transition many times, which on a 2-core machine is what matters.
 
@@ -28,7 +29,8 @@ gives the same function.
 Checkpoints (``data/experts/checkpoints/UNIT.sac``, not committed: the replay buffer is
 hundreds of MB) hold the networks, optimisers, buffer, generators and environment state, so a
 run cut by a session's end resumes exactly where it stopped. The finished actor becomes a
-:class:`~dc_lesson.nn.policies.GaussianPolicy` expert by distillation (``experts/distil.py``).
+:class:`~dc_lesson.nn.policies.GaussianPolicy` expert by distillation
+(:func:`dc_lesson.experts.network.distil`).
 """
 
 from __future__ import annotations
