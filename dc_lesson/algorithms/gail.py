@@ -113,6 +113,7 @@ from dc_lesson import progress as _progress
 from dc_lesson import timing as _timing
 from dc_lesson import tasks as _tasks
 from dc_lesson.algorithms import _reward_ppo
+from dc_lesson.algorithms import base as _base
 from dc_lesson.algorithms import bc as _bc
 from dc_lesson.algorithms import ppo as _ppo
 from dc_lesson.algorithms.base import TrainResult, check_inputs, load_run, save_run
@@ -408,10 +409,8 @@ def train(task: str, demos, config: GAILConfig = GAILConfig(), *,
         value_fn = ValueNetwork(spec.obs_dim, pcfg.hidden, norm_obs=policy.obs_norm is not None)
         disc = Discriminator(spec.obs_dim, spec.act_dim, config.disc_hidden,
                              config.disc_activation, use_actions=config.disc_actions)
-    gaussian = policy.gaussian   # a mixture has its own spreads
-    if given and gaussian and config.start_log_std is not None:
-        with torch.no_grad():     # the start's exploration noise (a resume restores the saved)
-            policy.log_std.fill_(config.start_log_std)
+    # the start's exploration noise (a mixture has its own spreads; a resume restores the saved)
+    _base.set_start_noise(policy if given else None, config.start_log_std)
     if value_fn.obs_norm is not None:        # one input scale for policy and critic, frozen
         value_fn.obs_norm.load_state_dict(policy.obs_norm.state_dict())
     disc.fit_input_stats(e_obs, e_act)

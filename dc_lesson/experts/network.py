@@ -63,7 +63,6 @@ class DistilConfig:
     """DAgger from the SAC actor into the learners' GaussianPolicy."""
     rounds: int = 6              # round 0: the SAC actor's own states; then the student's
     episodes_per_round: int = 8  # 1000-step episodes collected each round
-    beta0: float = 1.0           # round 0 acts with the teacher, later rounds with the student
     epochs: int = 30             # passes over all labelled states after each round
     batch_size: int = 256
     lr: float = 1e-3

@@ -87,9 +87,9 @@ RECIPES: dict[str, Recipe] = {r.unit: r for r in [
            note="the locomotion settings, with Gym's termination of a fallen hopper for "
                 "training only (the task never ends early); without it, falls in the first "
                 "few hundred steps left most of every 1000-step episode lying still"),
-    # PPO's attempts at the three tasks whose experts are SAC now (experts.network): they
-    # stayed below the floors after 5M steps; kept, with their curves, for chapter 00's
-    # comparison (``dc_lesson.experts.trained.train_unit("walker-ppo")`` resumes them)
+    # PPO's attempts at walker, ant and humanoid (experts.network: SAC networks for the first
+    # two, the planner still for the humanoid): walker's and ant's stayed below the floors
+    # after 5M steps and are kept, with their curves, for chapter 00's comparison (``dc_lesson.experts.trained.train_unit("walker-ppo")`` resumes them)
     Recipe("walker-ppo", "walker", PPOConfig(**_LOCOMOTION, total_steps=5_000_000)),
     Recipe("ant-ppo", "ant", PPOConfig(**_LOCOMOTION, total_steps=5_000_000)),
     Recipe("humanoid-ppo", "humanoid", PPOConfig(**{**_LOCOMOTION, "hidden": (256, 256)},

@@ -21,7 +21,7 @@ import numpy as np
 from dc_lesson import data as _data
 from dc_lesson.algorithms import bc as _bc
 from dc_lesson.evaluation import evaluate as _evaluate
-from dc_lesson.experiments import cells
+from dc_lesson.experiments import cells, protocol
 from dc_lesson.experiments.studies.bc_demos import _bc_config   # the same BC, listed alike
 
 NAME = "clonable"
@@ -54,6 +54,8 @@ def run_cell(cell, needs):
         raise cells.CellError(f"{cell.name}: BCConfig's defaults changed since the cell was "
                               f"listed; list the study again")
     variant = cell.variant or None
+    # the evaluation starts from no demonstration's initial state
+    protocol.check_disjoint(cell.task, {"evaluation": (cfg["eval_seed"], cfg["eval_episodes"])})
     demos = _data.load_demos(cell.task, n_trajectories=cell.n_demos, variant=variant)
     config = _bc.BCConfig(**{**cfg["bc"], "seed": cell.seed})
     policy, _ = _bc.train_bc(demos, config, progress=False)
