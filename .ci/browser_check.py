@@ -21,7 +21,8 @@ What it does, in order:
    widget that did not render, a warning in any output, a figure the kernel sent that the page
    does not show, a cell that did not run, a table showing NaN / None / <NA>, a table cell cut
    short with an ellipsis, a figure drawn at less than 60% of its natural width (its labels
-   become unreadable); and, after
+   become unreadable), a raw Python repr (a dict, an array, an object's address, a float of
+   10 or more significant digits; the rules are in ``reader_rules.py``); and, after
    File > Save, on any change of the chapter's paired ``.py`` (a reader who only ran and saved
    must not get a git diff);
 5. saves screenshots under ``outputs/`` of the repository: the whole notebook after the run,
@@ -51,11 +52,10 @@ import urllib.error
 import urllib.request
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
+# The rules on what a reader sees live beside this script (tested without a browser).
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
+from reader_rules import STDERR_MIME, dom_problems, model_problems  # noqa: E402
 CHROMIUM = "/usr/bin/chromium"
-STDERR_MIME = "application/vnd.jupyter.stderr"
-# A warning in an output cell, whatever printed it: Python's warnings (UserWarning,
-# TqdmWarning, ...), absl's "W0101 ... settotalmass is deprecated" lines, or a "warning:" text.
-WARNING_RE = re.compile(r"warning|^W\d{4} \d\d:\d\d", re.IGNORECASE | re.MULTILINE)
 
 # Lab settings of the run (a settings folder of its own, so a reader's settings cannot change
 # the check): every cell stays in the page (no windowing), so every output can be read from
@@ -188,71 +188,6 @@ OUTPUTS_JS = """() => Array.from(document.querySelectorAll(
               imgs: Array.from(e.querySelectorAll('img')).map(im => ({drawn: im.clientWidth,
                                                                        natural: im.naturalWidth}))};
     })"""
-
-
-# What a table must not show a reader: a missing value as NaN/None/<NA>, or a value cut short
-# by pandas' display.max_colwidth (an ellipsis at its end).
-# (case matters: lowercase "none" is the mode-share class of episodes that arrived nowhere)
-MISSING_CELLS = {"NaN", "nan", "None", "<NA>", "NaT"}
-MIN_DRAWN_FRACTION = 0.6   # a figure drawn at less than this of its width has unreadable labels
-
-
-def table_problems(cells) -> list[str]:
-    problems = []
-    missing = sorted({c for c in cells if c in MISSING_CELLS})
-    if missing:
-        problems.append(f"a table shows missing values as {', '.join(missing)}")
-    cut = [c for c in cells if c.endswith("...") or c.endswith("\u2026")]
-    if cut:
-        problems.append(f"{len(cut)} table cells cut short with an ellipsis, e.g. {cut[0][-60:]!r}")
-    return problems
-
-
-def image_problems(imgs) -> list[str]:
-    small = [im for im in imgs if im["natural"] and im["drawn"] / im["natural"] < MIN_DRAWN_FRACTION]
-    return [f"a figure drawn at {im['drawn'] / im['natural']:.0%} of its width "
-            f"({im['natural']} px wide): make it narrower" for im in small[:1]]
-
-
-def dom_problems(outputs) -> list[tuple[int, str]]:
-    problems = []
-    for o in outputs:
-        snippet = " ".join(o["text"].split())[:300]
-        where = f"cell {o['cell'] + 1}"
-        for msg in table_problems(o.get("cells", [])) + image_problems(o.get("imgs", [])):
-            problems.append((o["index"], f"{where}: {msg}"))
-        if o["mime"] == STDERR_MIME:
-            problems.append((o["index"], f"{where}: error or stderr output: {snippet!r}"))
-        elif o["widgetError"]:
-            problems.append((o["index"], f"{where}: a widget did not render: {snippet!r}"))
-        elif WARNING_RE.search(o["text"]):
-            problems.append((o["index"], f"{where}: warning text in an output: {snippet!r}"))
-    return problems
-
-
-def model_problems(nb: dict) -> list[str]:
-    """The saved notebook's outputs, read back through the contents API: the same checks on
-    what the kernel sent, including anything the page did not show."""
-    problems = []
-    code = [c for c in nb["cells"] if c["cell_type"] == "code"]
-    for i, cell in enumerate(nb["cells"]):
-        for out in cell.get("outputs", []):
-            kind = out["output_type"]
-            if kind == "error":
-                problems.append(f"cell {i + 1}: {out['ename']}: {out['evalue']}"[:300])
-                continue
-            if kind == "stream":
-                text = "".join(out["text"])
-                if out["name"] == "stderr":
-                    problems.append(f"cell {i + 1}: stderr: {' '.join(text.split())[:300]!r}")
-                    continue
-            else:
-                text = "".join(out.get("data", {}).get("text/plain", ""))
-            if WARNING_RE.search(text):
-                problems.append(f"cell {i + 1}: warning: {' '.join(text.split())[:300]!r}")
-    if not any(c.get("execution_count") for c in code):
-        problems.append("the saved notebook has no executed cell")
-    return problems
 
 
 SCROLLER = ".jp-NotebookPanel:not(.lm-mod-hidden) .jp-WindowedPanel-outer"
@@ -483,7 +418,7 @@ def check_one(nb: pathlib.Path, args) -> int:
             print(f"  - {msg}", file=sys.stderr)
         return 1
     print(f"browser check passed: {nb.name}, no error, stderr, warning, missing value, cut "
-          f"cell or shrunken figure ({seconds:.0f} s; {shots})")
+          f"cell, shrunken figure or raw repr ({seconds:.0f} s; {shots})")
     return 0
 
 

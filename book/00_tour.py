@@ -478,65 +478,13 @@ speed[columns].round(2)
 # 16 copies at a time (`rollout.collect`'s default); PPO, and the learners built on it,
 # collect with 8 (`PPOConfig.n_envs`), a choice about learning as much as speed: with a fixed
 # batch of interactions, more copies mean shorter stretches of each episode per update.
+# (How long a learner's whole run takes, and how the library's speed work shortened it, is
+# maintainers' material, in `dc_lesson/perf/HISTORY.md`.)
 
 # %%
 sweep = pd.DataFrame(bench["batch_sweep"]).set_index("batch")
 print(f"{sweep['task'].iloc[0]}: rollout / raw by environments per batch")
 sweep[["dc_lesson rollout", "rollout / raw"]].round(2).T
-
-# %% [markdown]
-# How long does a whole run take? `dc-lesson perf runs` trains each learner's lesson preset
-# (`algorithms.get(name).preset`, what the book's studies start from) on one core, from the
-# same demonstrations and the same BC start, twice: with today's code and with the code as it stood before the library's speed
-# work (issue 14, revision `7445a95`, extracted by git), alternating which goes first. BC runs a
-# fixed 20 epochs here (early stopping would stop the two codes at different epochs). The
-# seconds are the machine's of that day; the ratio, today's speed over the earlier code's, is
-# what carries over. Environment steps per second count the interactions a run takes, its
-# updates included. Where the gain comes from: rollouts step their copies in one call and run
-# the policy's forward pass in NumPy (the same noise from the same generator; actions equal
-# to float32 rounding), the optimiser step and the gradient clip call their kernels directly,
-# and PPO's and BC's gradients are written out by hand (`nn.backprop`: the derivatives
-# autograd would take, with the same kernels). Tests hold the last two to the bits of the
-# path they replaced. All of it sits behind one switch, `nn.fast.on()`, which the sweeps and
-# these benchmarks turn on; a chapter's own runs, and yours, take the code the algorithm
-# modules show (the loss through autograd, `optimizer.step()`, the torch modules in rollouts),
-# so a loss you edit is the loss that trains.
-
-# %%
-from dc_lesson.perf import runs as perf_runs
-
-runs = read_result("perf_runs.json")
-print(f"command: {runs['command']}   revision: {runs['revision'][:12]}   "
-      f"against: {runs['before'][:12]}")
-print(perf_runs.in_words(runs["rows"]))
-table = pd.DataFrame(runs["rows"]).set_index(["learner", "task"])
-# BC steps no environment while it trains: its steps-per-second cells are a dash
-table[["seconds_before", "seconds_today", "ratio", "steps_per_s_before",
-       "steps_per_s_today"]].round(2).astype(object).fillna("—")
-
-# %% [markdown]
-# DC's flow then changed its numerics, the one speed-up here that changes numbers: training
-# and reward solver steps of 0.5 instead of 0.25, the reward's trace at three quadrature
-# nodes instead of four, NumPy's tanh instead of torch's (chapter 3 shows the held-out
-# likelihood, the reward's accuracy and the ten-seed check that DC learns as before). Its DC
-# cells are recomputed with it. The same benchmark, today's DC against the earlier code's:
-
-# %%
-dc_runs = read_result("perf_runs_dc.json")
-print(f"command: {dc_runs['command']}   revision: {dc_runs['revision'][:12]}   "
-      f"against: {dc_runs['before'][:12]}")
-for r in dc_runs["rows"]:
-    if r.get("note"):
-        print(f"{r['learner']}: {r['note']}")
-dc4 = read_result("perf_runs_dc_reacher4.json")["rows"][0]
-dc2 = next(r for r in dc_runs["rows"] if r["task"] == dc4["task"] and r["learner"] == "dc")
-fmt = lambda xs: ", ".join(f"{x:.1f}" for x in xs)
-print(f"{dc4['task']} again with four runs of each: before {fmt(dc4['runs']['before'])} s, "
-      f"today {fmt(dc4['runs']['today'])} s (x{dc4['ratio']:.2f}); the two-run figure above "
-      f"rests on today {fmt(dc2['runs']['today'])} s (x{dc2['ratio']:.2f})")
-pd.DataFrame(dc_runs["rows"]).set_index(["learner", "task"])[
-    ["seconds_before", "seconds_today", "ratio", "steps_per_s_before",
-     "steps_per_s_today"]].round(2)
 
 # %% [markdown]
 # ## Summary

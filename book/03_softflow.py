@@ -71,7 +71,13 @@ BUDGET = notebook.start(
     "bench_softflow.json) are read, not recomputed, so their tables and figures are the "
     "real ones.")
 CHAPTER_START = time.perf_counter()
-print({k: v for k, v in vars(BUDGET).items() if k.startswith("softflow_")})
+listed = lambda xs: ", ".join(map(str, xs))
+print(f"live sizes at {BUDGET.name}: the circle toy {BUDGET.softflow_toy_points} points, "
+      f"{BUDGET.softflow_toy_iters} steps, seeds {listed(BUDGET.softflow_toy_seeds)};\n"
+      f"  the task flows {BUDGET.softflow_states} states, {BUDGET.softflow_iters} steps, seeds "
+      f"{listed(BUDGET.softflow_task_seeds)}; sigma_max swept over "
+      f"{listed(f'{s:g}' for s in BUDGET.softflow_sigma_maxes)};\n"
+      f"  densities drawn on a {BUDGET.softflow_grid} x {BUDGET.softflow_grid} grid")
 
 # The study's cells, aggregated, and the arrays of their features (densities, samples).
 FIT, FIT_ARRAYS = softflow_fit_study.fit_record(read_result("softflow_fit_cells.json"))

@@ -138,9 +138,44 @@ def read_bytes(path, what: str = "file", fix: str = "") -> bytes:
         return f.read()
 
 
+class UnreadableFileError(ValueError):
+    """A file whose bytes are not what the library writes (not UTF-8 text, not JSON, a field
+    missing); the message names the file and how to make it again."""
+
+
 def read_text(path, what: str = "file", fix: str = "") -> str:
-    """The UTF-8 text of a regular file (:func:`open_regular`)."""
-    return read_bytes(path, what, fix).decode()
+    """The UTF-8 text of a regular file (:func:`open_regular`); bytes that are not UTF-8 raise
+    :class:`UnreadableFileError` naming the file (the codec's own message names none)."""
+    try:
+        return read_bytes(path, what, fix).decode()
+    except UnicodeDecodeError as e:
+        raise UnreadableFileError(f"{what} {path} is not UTF-8 text (byte {e.start}); "
+                                  f"{fix or 'replace it with the file the library wrote'}"
+                                  ) from None
+
+
+def read_json(path, what: str = "file", fix: str = ""):
+    """The JSON value in a regular UTF-8 file; a file that does not parse raises
+    :class:`UnreadableFileError` naming it (``json``'s message gives a line, not a file)."""
+    try:
+        return json.loads(read_text(path, what, fix))
+    except json.JSONDecodeError as e:
+        raise UnreadableFileError(f"{what} {path} is not valid JSON ({e}); "
+                                  f"{fix or 'replace it with the file the library wrote'}"
+                                  ) from None
+
+
+def json_fields(value, path, what: str, fix: str, *keys: str) -> list:
+    """``value[key]`` for each key of a JSON object read from ``path``; a value that is not an
+    object, or lacks a key, raises :class:`UnreadableFileError` naming the file and the key
+    (a bare ``KeyError: 'log'`` names neither)."""
+    if not isinstance(value, dict):
+        raise UnreadableFileError(f"{what} {path} holds {type(value).__name__}, not a JSON "
+                                  f"object; {fix}")
+    missing = [k for k in keys if k not in value]
+    if missing:
+        raise UnreadableFileError(f"{what} {path} lacks {', '.join(map(repr, missing))}; {fix}")
+    return [value[k] for k in keys]
 
 
 def git_revision() -> str:
@@ -352,9 +387,7 @@ def read_result(name_or_path) -> dict:
     if not path.is_absolute() and not path.exists():
         path = RESULTS / path
     try:
-        return json.loads(read_text(path, "result file", "regenerate it"))
+        return read_json(path, "result file", "regenerate it")
     except FileNotFoundError:
         raise FileNotFoundError(f"result file {path} is missing; it is made by the command "
                                 f"recorded in the book beside the figure") from None
-    except (json.JSONDecodeError, UnicodeDecodeError) as e:
-        raise ValueError(f"result file {path} is not valid JSON ({e}); regenerate it") from None

@@ -77,3 +77,26 @@ def test_an_aggregate_whose_grid_moved_on_says_so(tmp_path):
     grid[0].path(tmp_path).unlink()            # a cell of the old grid is not of today's
     said = aggregate.freshness(rec, tmp_path)
     assert f"1 of its {len(grid)} dc_lr cells" in said and "dc-lesson aggregate dc_lr" in said
+
+
+def _never_read(*a, **k):
+    raise AssertionError("records read before the output was checked")
+
+
+def test_an_unwritable_results_folder_is_refused_before_any_record_is_read(monkeypatch):
+    # issue 42: the aggregate was computed, then lost at the write
+    monkeypatch.setattr(aggregate, "grid_records", _never_read)
+    with pytest.raises(aggregate.AggregateError,
+                       match="results folder /proc/dc-lesson-results cannot be written.*nothing "
+                             "was computed.*choose another results folder"):
+        aggregate.write("bc_demos", budget.get("smoke"), results="/proc/dc-lesson-results")
+
+
+def test_a_read_only_data_folder_names_the_folder_and_the_variable(monkeypatch, capsys):
+    from dc_lesson import cli
+    monkeypatch.setattr(aggregate, "grid_records", _never_read)
+    monkeypatch.setenv("DC_LESSON_DATA", "/proc")   # a folder no file can be made in, even as root
+    assert cli.main(["aggregate", "bc_demos", "--budget", "smoke"]) == 2
+    err = capsys.readouterr().err
+    assert "results folder /proc/results cannot be written" in err
+    assert "set DC_LESSON_DATA to a writable copy of the data folder" in err

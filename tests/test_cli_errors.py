@@ -275,3 +275,35 @@ def test_a_sweep_from_python_refuses_a_worker_count_that_is_not_positive(cpus):
     from dc_lesson.experiments import sweep
     with pytest.raises(sweep.SweepError, match="positive whole number"):
         sweep.start_ray(budget.get("smoke"), cpus=cpus)
+
+
+def _never(what):
+    def fail(*a, **k):
+        raise AssertionError(f"{what} before the refusal")
+    return fail
+
+
+def test_a_sweep_from_python_refuses_cpus_0_before_touching_anything(tmp_path, monkeypatch):
+    # issue 42: run() let cpus=0 through to Ray's start (and with nothing left to run, at all)
+    from dc_lesson import budget
+    from dc_lesson.experiments import sweep
+    monkeypatch.setattr(sweep, "plan", _never("planned"))
+    root = tmp_path / "cells"
+    with pytest.raises(sweep.SweepError, match="positive whole number of workers, got 0"):
+        sweep.run("bc_demos", budget.get("smoke"), root=root, cpus=0, progress=False)
+    assert not root.exists()
+
+
+def test_a_sweep_whose_aggregate_cannot_be_written_fails_before_planning(tmp_path, monkeypatch):
+    from dc_lesson import budget
+    from dc_lesson.experiments import aggregate, sweep
+    monkeypatch.setattr(sweep, "plan", _never("planned"))
+    with pytest.raises(aggregate.AggregateError,
+                       match="results folder /proc/dc-lesson-results cannot be written.*"
+                             "nothing was computed"):
+        sweep.run("bc_demos", budget.get("smoke"), root=tmp_path / "cells",
+                  results="/proc/dc-lesson-results", progress=False)
+    # without the aggregate there is nothing to write there: the sweep goes on to plan
+    with pytest.raises(AssertionError, match="planned"):
+        sweep.run("bc_demos", budget.get("smoke"), root=tmp_path / "cells",
+                  results="/proc/dc-lesson-results", progress=False, aggregate=False)

@@ -84,3 +84,21 @@ def test_the_dc_stored_run_trains_todays_dc_with_the_stored_numerics(name, numer
     assert today != dc.STORED_NUMERICS       # else the two runs would time the same thing
     printed = json.loads(capsys.readouterr().out)
     assert {k: printed["config"][k] for k in got} == got
+
+
+def test_the_speed_history_is_in_perf_docs_and_chapter_00_only_points_there():
+    # issue 42: the history is maintainers' material; the page quotes every stored row as
+    # format_row prints it, so a remade benchmark shows up as a failing test, not a stale page
+    history = (pathlib.Path(runs.__file__).parent / "HISTORY.md").read_text()
+    from dc_lesson.storage import read_result
+    for name in ("perf_runs.json", "perf_runs_dc.json", "perf_runs_dc_reacher4.json"):
+        rec = read_result(name)
+        assert rec["revision"][:12] in history, name
+        for row in rec["rows"]:
+            assert runs.format_row(row) in history, (name, runs.format_row(row))
+    words = runs.in_words(read_result("perf_runs.json")["rows"])   # "... halfcheetah, 61 s; ..."
+    assert words.split(", ", 1)[1] in " ".join(history.split())
+    chapter = (ROOT / "book" / "00_tour.py").read_text()
+    assert "perf_runs" not in chapter and "issue 14" not in chapter
+    pointers = [s for s in " ".join(chapter.split()).split(". ") if "perf/HISTORY.md" in s]
+    assert len(pointers) == 1, pointers

@@ -10,7 +10,6 @@ refused before it is opened, so a hostile manifest can neither read elsewhere no
 from __future__ import annotations
 
 import io
-import json
 import numbers
 import os
 import pathlib
@@ -56,12 +55,14 @@ def save_demos(trajectories: list[Trajectory], path) -> str:
     """Writes trajectories of one task to ``path`` (.npz, atomically); returns its sha256."""
     from dc_lesson.storage import atomic_write_bytes
     if not trajectories:
-        raise ValueError("no trajectories to save")
+        raise ValueError(f"no trajectories to save to {path}")
     task = trajectories[0].task
     if any(t.task != task for t in trajectories):
-        raise ValueError("all trajectories in a demonstration file must be of one task")
+        raise ValueError(f"all trajectories in a demonstration file must be of one task; those "
+                         f"for {path} are of {sorted({t.task for t in trajectories})}")
     if len({len(t) for t in trajectories}) != 1:
-        raise ValueError("demonstrations must all have the same length (the horizon)")
+        raise ValueError(f"demonstrations must all have the same length (the horizon); those "
+                         f"for {path} have lengths {sorted({len(t) for t in trajectories})}")
     arrays = {
         "observations": np.stack([t.observations for t in trajectories]),
         "actions": np.stack([t.actions for t in trajectories]),
@@ -98,7 +99,8 @@ def demo_path(entry: dict, task: str, directory=None) -> pathlib.Path:
     hint = regenerate_hint(task)
     name = entry.get("file") if isinstance(entry, dict) else None
     if not isinstance(name, str) or not name or "\x00" in name:
-        raise DemoError(f"the manifest's entry for {task!r} names no file ({name!r}); {hint}")
+        raise DemoError(f"the entry for {task!r} in {manifest_path(directory)} names no file "
+                        f"({name!r}); {hint}")
     rel = pathlib.PurePosixPath(name)
     if rel.is_absolute() or pathlib.PureWindowsPath(name).is_absolute() or ".." in rel.parts \
             or "\\" in name:
@@ -149,19 +151,22 @@ def read_demo_file(path, task: str) -> list[Trajectory]:
         raise DemoError(f"{path} is inconsistent: {e}; {hint}") from None
 
 
+def manifest_path(directory=None) -> pathlib.Path:
+    return pathlib.Path(directory or DEMOS_DIR) / "manifest.json"
+
+
 def read_manifest(directory=None) -> dict:
-    path = pathlib.Path(directory or DEMOS_DIR) / "manifest.json"
+    path = manifest_path(directory)
     if not path.exists():
         return {"format": DEMO_FORMAT, "tasks": {}}
-    _check_regular(path, "regenerate the demonstrations with: dc-lesson demos --task NAME",
-                   "demonstration manifest")
+    fix = "regenerate the demonstrations with: dc-lesson demos --task NAME"
+    _check_regular(path, fix, "demonstration manifest")
     try:
-        manifest = json.loads(path.read_text())
-    except (json.JSONDecodeError, UnicodeDecodeError) as e:
-        raise DemoError(f"{path} is not valid JSON ({e}); regenerate the demonstrations "
-                        f"with: dc-lesson demos --task NAME") from None
+        manifest = _storage.read_json(path, "demonstration manifest", fix)
+    except _storage.UnreadableFileError as e:
+        raise DemoError(str(e)) from None
     if not isinstance(manifest, dict) or not isinstance(manifest.get("tasks"), dict):
-        raise DemoError(f"{path} is not a demonstration manifest (no 'tasks')")
+        raise DemoError(f"{path} is not a demonstration manifest (no 'tasks'); {fix}")
     return manifest
 
 
@@ -169,8 +174,8 @@ def manifest_entry(task: str, directory=None, variant: str | None = None) -> dic
     name = demo_set(task, variant)
     entry = read_manifest(directory)["tasks"].get(name)
     if entry is None:
-        raise DemoError(f"the manifest has no demonstrations {name!r}; "
-                        f"{regenerate_hint(task, variant)}")
+        raise DemoError(f"the manifest {manifest_path(directory)} has no demonstrations "
+                        f"{name!r}; {regenerate_hint(task, variant)}")
     return entry
 
 
@@ -204,8 +209,8 @@ def load_demos(task: str, n_trajectories: int | None = None, seed: int | None = 
     path = demo_path(entry, task, directory)
     hint = regenerate_hint(task, variant)
     if not isinstance(entry.get("sha256"), str):
-        raise DemoError(f"the manifest's entry for {demo_set(task, variant)!r} has no sha256; "
-                        f"{hint}")
+        raise DemoError(f"the entry for {demo_set(task, variant)!r} in "
+                        f"{manifest_path(directory)} has no sha256; {hint}")
     digest = sha256(path)
     if digest != entry["sha256"]:
         raise DemoError(f"{path} does not match its sha256 in the manifest (file {digest[:12]}"

@@ -162,6 +162,26 @@ def freshness(rec: dict, root=None) -> str:
             f"reruns on today's grid")
 
 
+def check_output(study_name: str, results=None) -> pathlib.Path:
+    """The file :func:`write` will write for ``study_name``, checked writable before any
+    record is read or any interval computed; :class:`AggregateError` names the folder and
+    the fix.  Returns the path."""
+    from dc_lesson.experiments import studies
+    study = studies.get(study_name)
+    path = pathlib.Path(results or storage.RESULTS) / (study.result_file or f"{study.name}.json")
+    try:
+        storage.check_writable(path)
+    except storage.OutputPathError as e:
+        fix = ("choose another results folder" if results is not None else
+               f"set {storage.DATA_ENV} to a writable copy of the data folder (cp -r "
+               f"{storage.data_root()}/. COPY; then {storage.DATA_ENV}=COPY)")
+        why = str(e).removesuffix("; choose another path")
+        raise AggregateError(f"the results folder {path.parent} cannot be written, so the "
+                             f"aggregate of {study.name} would be lost ({why}); nothing was "
+                             f"computed. Fix the folder's permissions, or {fix}") from None
+    return path
+
+
 def write(study_name: str, b: _budget.Budget | None = None, *, root=None, results=None,
           command: str = "", partial: bool = False) -> pathlib.Path:
     """Aggregates a complete study and writes ``RESULTS/STUDY.json``; returns the path.
@@ -173,11 +193,10 @@ def write(study_name: str, b: _budget.Budget | None = None, *, root=None, result
     study = studies.get(study_name)
     if study.aggregate is None:
         raise AggregateError(f"study {study.name} has no aggregate (it is read by others)")
+    path = check_output(study.name, results)   # a read-only data folder fails here, not after
     recs = grid_records(study, b, root, partial=partial)
     n_grid = len(_own_cells(study, b))
     payload = study.aggregate(recs, b)
-    path = pathlib.Path(results or storage.RESULTS) / (study.result_file or
-                                                       f"{study.name}.json")
     record = {"command": command or f"dc-lesson aggregate {study.name} --budget {b.name}",
               "benchmark": study.name, "budget": b.name, "revision": storage.git_revision(),
               "time": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
@@ -238,5 +257,5 @@ def costs(study: str, budget_name: str, since: str | None = None,
     return out
 
 
-__all__ = ["AggregateError", "KEY", "MEASURES", "costs", "freshness", "grid_records",
-           "iqm_over_tasks", "observation", "paired", "table", "todays_grid", "write"]
+__all__ = ["AggregateError", "KEY", "MEASURES", "check_output", "costs", "freshness",
+           "grid_records", "iqm_over_tasks", "observation", "paired", "table", "todays_grid", "write"]

@@ -305,14 +305,19 @@ def _ray_env(b: _budget.Budget) -> dict:
     return env
 
 
+def check_cpus(cpus) -> None:
+    """``cpus`` is None (every core) or a whole number of workers from 1: 0 would be read as
+    "not given" and silently mean every core, as the CLI's ``--cpus 0`` once did."""
+    if cpus is not None and (isinstance(cpus, bool) or not isinstance(cpus, int) or cpus < 1):
+        raise SweepError(f"cpus must be a positive whole number of workers, got {cpus!r}; "
+                         "leave it out for every core")
+
+
 def start_ray(b: _budget.Budget, *, address: str | None = None, cpus: int | None = None):
     """A local Ray instance (``cpus`` workers, default all cores) or, with ``address``, the
     cluster there; a no-op when Ray is already running in this process.  Returns whether this
     call started it (then the sweep shuts it down)."""
-    if cpus is not None and (isinstance(cpus, bool) or not isinstance(cpus, int) or cpus < 1):
-        # 0 would be read as "not given" below and silently mean every core
-        raise SweepError(f"cpus must be a positive whole number of workers, got {cpus!r}; "
-                         "leave it out for every core")
+    check_cpus(cpus)
     try:
         import ray
     except ImportError:
@@ -368,14 +373,17 @@ def run(study_name: str, b: _budget.Budget | None = None, *, only=(), address=No
     running at the deadline finish, so a session of fixed length stops with every started
     cell written instead of killing cells part way (``SweepReport.deferred`` counts the rest,
     which the next run picks up)."""
-    import ray
-
+    check_cpus(cpus)   # before anything is touched, as on the command line
     from dc_lesson import progress as _progress
     from dc_lesson.experiments import studies
     b = b or _budget.current()
     study = studies.get(study_name)
     root = pathlib.Path(root or _cells.cells_root())
     check_writable(root)
+    if aggregate and study.aggregate is not None:
+        from dc_lesson.experiments import aggregate as _aggregate
+        _aggregate.check_output(study.name, results)   # a complete sweep ends by writing it
+    import ray
     p = plan(study, b, only, root)
     grid, todo = p["grid"], p["todo"]
     costs = measured_costs(root)
@@ -465,7 +473,8 @@ def _eta(left, walls, costs, b, workers) -> float | None:
     return total / max(1, workers)
 
 
-__all__ = ["ONLY_KEYS", "SweepError", "SweepReport", "check_writable", "estimate", "execute",
+__all__ = ["ONLY_KEYS", "SweepError", "SweepReport", "check_cpus", "check_writable", "estimate",
+           "execute",
            "format_plan", "interactions", "ledger", "format_ledger", "measured_costs",
            "measured_rates",
            "plan", "run", "select", "start_ray", "startable"]

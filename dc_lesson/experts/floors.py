@@ -89,15 +89,20 @@ def check(task: str, entry: dict, trajectories) -> dict:
 def bc_from_25(results_dir=None) -> dict[str, float]:
     """BC's mean scaled return from 25 demonstrations of each task's default expert, from the
     stored ``clonable`` aggregate (empty when it is not there)."""
-    import json
     from dc_lesson import storage
     path = (storage.DATA / "results" if results_dir is None else results_dir) / "clonable.json"
     if not path.is_file():
         return {}
-    rows = json.loads(storage.read_text(path, "result file",
-                                        "rebuild it with: dc-lesson aggregate clonable"))
-    return {r["task"]: float(r["scaled_return_mean"]) for r in rows.get("table", [])
-            if r.get("demonstrations") == r.get("task")}
+    fix = "rebuild it with: dc-lesson aggregate clonable"
+    table, = storage.json_fields(storage.read_json(path, "result file", fix), path,
+                                 "result file", fix, "table")
+    try:
+        return {r["task"]: float(r["scaled_return_mean"]) for r in table
+                if r.get("demonstrations") == r.get("task")}
+    except (KeyError, TypeError, ValueError, AttributeError) as e:
+        raise storage.UnreadableFileError(f"result file {path} has a table row without a task "
+                                          f"or a scaled return ({type(e).__name__}: {e}); "
+                                          f"{fix}") from None
 
 
 def report(directory=None, results_dir=None) -> list[dict]:

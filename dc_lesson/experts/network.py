@@ -126,13 +126,17 @@ def load_sac_actor(task: str, directory=None) -> Actor:
     if not p.exists():
         raise FileNotFoundError(f"no SAC actor {p}; {fix}")
     obj = load_checked(p, ACTOR_FORMAT, ACTOR_VERSION, "SAC actor", fix)
-    cfg = json.loads(obj["config"])
     spec = _tasks.SPECS[task]
-    actor = Actor(spec.obs_dim, spec.act_dim, tuple(cfg["hidden"]), cfg["log_std_min"],
-                  cfg["log_std_max"])
+    try:   # a file that passed its checksum but holds no usable configuration
+        cfg = json.loads(obj["config"])
+        actor = Actor(spec.obs_dim, spec.act_dim, tuple(cfg["hidden"]), cfg["log_std_min"],
+                      cfg["log_std_max"])
+    except (KeyError, TypeError, ValueError) as e:
+        raise ModelFileError(f"SAC actor {p} holds no usable configuration "
+                             f"({type(e).__name__}: {e}); {fix}") from None
     try:
         actor.load_state_dict(obj["state_dict"])
-    except RuntimeError as e:
+    except (KeyError, RuntimeError) as e:
         raise ModelFileError(f"SAC actor {p} does not fit its recipe ({e}); {fix}") from None
     return actor.eval()
 
@@ -200,7 +204,10 @@ def distil_expert(task: str, config: DistilConfig = DISTIL, command: str = "",
     from dc_lesson.nn.policies import save_policy
     p = paths(task, directory)
     teacher = load_sac_actor(task, directory)
-    sac_meta = json.loads(p["sac_meta"].read_text())
+    fix = f"rerun: dc-lesson expert train --task {task}"
+    sac_meta = _storage.read_json(p["sac_meta"], "SAC record", fix)
+    _storage.json_fields(sac_meta, p["sac_meta"], "SAC record", fix, "config",
+                         "training_seconds", "steps", "log")   # before hours of distillation
     torch.set_num_threads(1)
     t0 = time.time()
     student, log = distil(task, teacher, config, progress)
@@ -239,10 +246,15 @@ def sac_curve(task: str, directory=None) -> dict:
     if not path.exists():
         raise FileNotFoundError(f"no SAC record {path}; train it with: dc-lesson expert "
                                 f"train --task {task}")
-    meta = json.loads(_storage.read_text(path, "SAC record",
-                                         f"rerun: dc-lesson expert train --task {task}"))
-    log = meta["log"]
-    return {"task": task, "steps": np.array([r["steps"] for r in log]),
-            "eval_return": np.array([r["eval_return"] for r in log]),
-            "training_seconds": meta["training_seconds"], "done": meta["done"],
-            "total_steps": meta["config"]["total_steps"]}
+    fix = f"rerun: dc-lesson expert train --task {task}"
+    meta = _storage.read_json(path, "SAC record", fix)
+    log, seconds, done, config = _storage.json_fields(meta, path, "SAC record", fix, "log",
+                                                      "training_seconds", "done", "config")
+    try:
+        return {"task": task, "steps": np.array([r["steps"] for r in log]),
+                "eval_return": np.array([r["eval_return"] for r in log]),
+                "training_seconds": seconds, "done": done,
+                "total_steps": config["total_steps"]}
+    except (KeyError, TypeError) as e:
+        raise _storage.UnreadableFileError(f"SAC record {path} lacks {e} in its log or config "
+                                           f"({type(e).__name__}); {fix}") from None

@@ -47,7 +47,7 @@ from torch import nn
 import torch.nn.functional as F
 
 from dc_lesson import tasks as _tasks
-from dc_lesson.nn.checkpoint import atomic_torch_save, load_checked
+from dc_lesson.nn.checkpoint import ModelFileError, atomic_torch_save, load_checked
 
 CHECKPOINT_FORMAT, CHECKPOINT_VERSION = "dc_lesson.sac", 1
 
@@ -218,24 +218,29 @@ def train(task: str, config: SACConfig = SACConfig(), checkpoint=None, progress=
     step, size, ptr, episode, log, seconds = 0, 0, 0, 0, [], 0.0
     ckpt = pathlib.Path(checkpoint) if checkpoint else None
     if ckpt is not None and ckpt.exists():
-        st = load_checked(ckpt, CHECKPOINT_FORMAT, CHECKPOINT_VERSION, "SAC checkpoint",
-                          f"delete {ckpt} to train from the start")
-        if {**json_config(SACConfig()), **st["config"]} != json_config(cfg):
+        fix = f"delete {ckpt} to train from the start"
+        st = load_checked(ckpt, CHECKPOINT_FORMAT, CHECKPOINT_VERSION, "SAC checkpoint", fix)
+        if not isinstance(st.get("config"), dict) or \
+                {**json_config(SACConfig()), **st["config"]} != json_config(cfg):
             raise ValueError(f"the SAC checkpoint {ckpt} was made with another configuration; "
                              f"delete it to train from the start")
-        actor.load_state_dict(st["actor"]); qf.load_state_dict(st["qf"])
-        qf_target.load_state_dict(st["qf_target"])
-        with torch.no_grad():
-            log_alpha.copy_(st["log_alpha"])
-        for o, s in zip((q_opt, pi_opt, a_opt), st["opts"]):
-            o.load_state_dict(s)
-        size, ptr, step, episode = st["size"], st["ptr"], st["step"], st["episode"]
-        for k in buf:   # a checkpoint from before ``done`` existed holds no terminal
-            if k in st["buffer"]:
-                buf[k][:size] = st["buffer"][k].numpy()
-        rng.bit_generator.state = _json.loads(st["np_rng"])
-        gen.set_state(st["torch_gen"])
-        log, seconds = _json.loads(st["log"]), st["seconds"]
+        try:   # a file that passed its checksum but lacks a part (a bare KeyError names none)
+            actor.load_state_dict(st["actor"]); qf.load_state_dict(st["qf"])
+            qf_target.load_state_dict(st["qf_target"])
+            with torch.no_grad():
+                log_alpha.copy_(st["log_alpha"])
+            for o, s in zip((q_opt, pi_opt, a_opt), st["opts"]):
+                o.load_state_dict(s)
+            size, ptr, step, episode = st["size"], st["ptr"], st["step"], st["episode"]
+            for k in buf:   # a checkpoint from before ``done`` existed holds no terminal
+                if k in st["buffer"]:
+                    buf[k][:size] = st["buffer"][k].numpy()
+            rng.bit_generator.state = _json.loads(st["np_rng"])
+            gen.set_state(st["torch_gen"])
+            log, seconds = _json.loads(st["log"]), st["seconds"]
+        except (KeyError, TypeError, ValueError, RuntimeError) as e:
+            raise ModelFileError(f"SAC checkpoint {ckpt} is inconsistent "
+                                 f"({type(e).__name__}: {e}); {fix}") from None
 
     def save():
         atomic_torch_save({

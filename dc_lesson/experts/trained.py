@@ -161,7 +161,11 @@ def train_unit(unit: str, total_steps: int | None = None, command: str = "",
         config = dataclasses.replace(config, total_steps=int(total_steps))
     paths = unit_paths(unit, directory)
     if paths["policy"].exists() and paths["meta"].exists() and not restart:
-        done = json.loads(paths["meta"].read_text())
+        try:
+            done = _storage.read_json(paths["meta"], "training record", _record_fix(unit))
+        except _storage.UnreadableFileError:
+            done = {}   # a damaged record is not a finished unit: the run below rewrites it
+        done = done if isinstance(done, dict) else {}
         # A knob added to PPOConfig after a unit was trained takes its default value.
         defaults = {f.name: f.default for f in dataclasses.fields(PPOConfig)}
         saved = json.loads(json.dumps({**defaults, **done.get("config", {})}))
@@ -209,15 +213,25 @@ def learning_curve(unit: str, directory=None) -> dict:
     if not path.exists():
         raise ExpertMissing(f"no training record {path}; train the unit with "
                             f"dc_lesson.experts.trained.train_unit({unit!r})")
-    meta = json.loads(path.read_text())
-    curve = meta.get("learning_curve")
+    fix = _record_fix(unit)
+    meta = _storage.read_json(path, "training record", fix)
+    task, seconds, curve = _storage.json_fields(meta, path, "training record", fix, "task",
+                                                "training_seconds", "learning_curve")
     if not isinstance(curve, list) or not curve:
-        raise ValueError(f"{path} has no learning curve; retrain the unit with "
-                         f"dc_lesson.experts.trained.train_unit({unit!r})")
-    return {"unit": unit, "task": meta["task"],
-            "steps": np.array([row["steps"] for row in curve]),
-            "episode_return": np.array([row["episode_return"] for row in curve]),
-            "training_seconds": meta["training_seconds"]}
+        raise ValueError(f"{path} has no learning curve; {fix}")
+    try:
+        steps = np.array([row["steps"] for row in curve])
+        returns = np.array([row["episode_return"] for row in curve])
+    except (KeyError, TypeError) as e:
+        raise _storage.UnreadableFileError(f"training record {path} has a learning curve row "
+                                           f"without {e} ({type(e).__name__}); {fix}") from None
+    return {"unit": unit, "task": task, "steps": steps, "episode_return": returns,
+            "training_seconds": seconds}
+
+
+def _record_fix(unit: str) -> str:
+    return (f"restore it with: git checkout -- data/experts/{unit}.json; or retrain the unit "
+            f"with dc_lesson.experts.trained.train_unit({unit!r})")
 
 
 class DeterministicPolicy:

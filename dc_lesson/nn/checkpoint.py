@@ -26,8 +26,8 @@ import pathlib
 
 import torch
 
-from dc_lesson.storage import (NotRegularFileError, atomic_write, atomic_write_text,
-                               read_bytes, read_text, sha256)
+from dc_lesson.storage import (NotRegularFileError, UnreadableFileError, atomic_write,
+                               atomic_write_text, read_bytes, read_text, sha256)
 
 
 class ModelFileError(ValueError):
@@ -65,7 +65,7 @@ def read_checksums(path, strict: bool = False, fix: str = "") -> list[str]:
         if strict:
             raise
         return []
-    except (OSError, UnicodeDecodeError):
+    except (OSError, UnreadableFileError):   # no sidecar, or garbage: it accepts nothing
         return []
     out = []
     for line in lines:

@@ -215,8 +215,8 @@ def benchmark(before: str = ISSUE_14, tasks=TASKS, learners=LEARNERS, repeats: i
 
 
 def in_words(rows: list[dict]) -> str:
-    """What chapter 00 says of a stored benchmark: the longest run of today's code, and
-    whether every learner ran faster than with the earlier code (each ratio above 1)."""
+    """A stored benchmark in one line (``HISTORY.md`` says it): the longest run of today's
+    code, and whether every learner ran faster than with the earlier code (each ratio above 1)."""
     longest = max(rows, key=lambda r: r["seconds_today"])
     slower = [f"{r['learner']} on {r['task']}" for r in rows if not r["ratio"] > 1]
     return (f"the longest lesson run: {longest['learner']} on {longest['task']}, "
