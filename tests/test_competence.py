@@ -196,3 +196,48 @@ def test_a_training_only_termination_reaches_every_loop_that_steps_the_task(lear
                                   comp.learner_config(learner, b, "keep", 0, "hopper"),
                                   progress=False)
     assert seen and set(seen) == {"hopper-fall"}
+
+
+# -- the chapter's reading of the aggregate (experiments.competence) ---------------------------
+
+def _record(obs):
+    for i, o in enumerate(obs):
+        o.setdefault("seed", i)
+        o.setdefault("curve_steps", [1000 * (k + 1) for k in range(len(o["curve"]))])
+    return {"observations": obs, "steps": {"keep": 1000, "learn": 2000},
+            "cells": {"n": len(obs), "of": 99, "wall_seconds": 3600.0}, "budget": "lesson",
+            "complete": False}
+
+
+def test_the_chapter_table_words_each_part_from_the_seeds_on_record():
+    from dc_lesson.experiments import competence as report
+    obs = _obs("gail", "keep", "cartpole", 1.0, 1.0, 9, [1.0, 1.0]) + \
+        _obs("gail", "keep", "cartpole", 1.0, 1.0, 1, [1.0, 0.7])       # one dip of 0.3
+    obs += _obs("dc", "keep", "cartpole", 1.0, 0.99, 10, [1.0, 0.99])
+    rec = _record([dict(o) for o in obs])
+    rows = {(r["learner"], r["part"], r["task"]): r for r in report.rows(rec)}
+    gail = rows[("GAIL", "keep", "cartpole")]
+    assert gail["seeds"] == 10 and gail["word"].startswith("fails") and "0.30" in gail["word"]
+    assert abs(gail["worst dip"] - 0.3) < 1e-12
+    assert rows[("DC", "keep", "cartpole")]["word"] == "passes"
+    assert rows[("DC", "keep", "hopper")]["word"] == "not run yet"
+    words = report.gate_words(rec)
+    assert words["GAIL"].startswith("failed") and "keep on cartpole" in words["GAIL"]
+    # parts not yet run never pass and never fail: DC is "not yet shown", naming them
+    assert words["DC"].startswith("not yet shown") and "keep on hopper" in words["DC"]
+    assert report.overview(rec)["DC"] == {"keep: cartpole": "passes (10)",
+                                          "keep: hopper": "not run", "learn: hopper": "not run",
+                                          "learn: halfcheetah": "not run"}
+    text = report.sentence(rec)
+    assert "GAIL" in text and "failed" in text and "passed the whole gate" not in text
+    assert "still accumulating" in report.status(rec)
+
+
+def test_the_chapter_curves_carry_an_interval_over_seeds():
+    from dc_lesson.experiments import competence as report
+    obs = [{"row": "pwil", "part": "learn", "task": "hopper", "start": 0.1, "final": f,
+            "curve": [0.1, f]} for f in (0.5, 0.7, 0.9)]
+    c = report.curves(_record(obs), "learn", "hopper")["PWIL"]
+    assert c["seeds"] == 3 and c["steps"] == [1000, 2000]
+    assert abs(c["mean"][1] - 0.7) < 1e-12 and c["lo"][1] < 0.7 < c["hi"][1]
+    assert report.curves(_record(obs), "keep", "hopper") == {}

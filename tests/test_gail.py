@@ -289,3 +289,32 @@ def test_a_state_only_discriminator_ignores_actions(demos1):
     b = gail.train("reacher1", demos1, cfg, progress=False)
     assert a.models["discriminator"].config()["use_actions"] is False
     _same_state(a.policy, b.policy)
+
+
+def test_expert_noise_gives_the_expert_the_learner_s_spread_and_nothing_else():
+    torch.manual_seed(0)
+    pi = GaussianPolicy(3, 2, (8,), log_std_init=-2.0)
+    with torch.no_grad():
+        pi.log_std.copy_(torch.tensor([-2.0, -1.0]))
+    acts = torch.full((20000, 2), 0.3)
+    assert gail.expert_actions(acts, pi, gail.GAILConfig(), torch.Generator()) is acts
+    cfg = gail.GAILConfig(expert_noise="learner")
+    seen = gail.expert_actions(acts, pi, cfg, torch.Generator().manual_seed(1))
+    # centred on the recorded actions, each dimension spread by the learner's own std
+    np.testing.assert_allclose(seen.mean(0), [0.3, 0.3], atol=0.01)
+    np.testing.assert_allclose(seen.std(0), np.exp([-2.0, -1.0]), rtol=0.03)
+    again = gail.expert_actions(acts, pi, cfg, torch.Generator().manual_seed(1))
+    assert torch.equal(seen, again)                          # drawn from the run's generator
+    # a later knob: unset, stored GAIL cells keep their identity; set, it is in the JSON
+    assert "expert_noise" not in gail.GAILConfig().to_json()
+    assert '"expert_noise": "learner"' in cfg.to_json()
+    with pytest.raises(ValueError, match="expert_noise"):
+        gail.GAILConfig(expert_noise="expert")
+
+
+def test_expert_noise_refuses_a_policy_without_one_spread(demos1):
+    from dc_lesson.nn.mixture import MixturePolicy
+    mix = MixturePolicy(8, 2, n_components=2)
+    with pytest.raises(ValueError, match="mixture"):
+        gail.train("reacher1", demos1, _tiny(expert_noise="learner"), policy=mix,
+                   progress=False)

@@ -66,6 +66,16 @@ Implementation details, each a field of :class:`GAILConfig`:
 * Gradient penalty (``grad_penalty > 0``): Gulrajani et al.'s penalty
   gp * (||grad_x f(x)|| - 1)^2 at random interpolates of expert and learner inputs (as in
   DAC, Kostrikov et al. 2019), which keeps f smooth and D from winning outright.
+* The expert's actions as D sees them (``expert_noise``; None, as recorded, by default): the
+  demonstrations hold the experts' *mean* actions, so a learner that explores with any noise
+  is told apart by the noise alone, however close its mean.  ``"learner"`` adds the learner's
+  current Gaussian noise (its std, per dimension, from the discriminator's generator) to the
+  expert's actions in every discriminator step: D then compares the learner with the expert
+  acting as noisily as the learner does (as if the demonstrations had been sampled), and is
+  left with the states and the mean actions to tell them apart.  Measured (issue 38, cartpole
+  from a perfect BC start, 400,000 interactions): D's accuracy on learner pairs at the first
+  iteration fell from about 0.45 to chance, yet the start was still lost without
+  ``ppo.norm_adv=False`` (see ``experiments.studies.competence``).
 * The BC warm start (``bc_warm_start``, used by the benchmark through
   :func:`dc_lesson.algorithms.bc.warm_start`): GAIL starts from BC's policy, whose mean network it keeps.
 * The start's noise (``start_log_std``; None, i.e. kept, by default, and
@@ -122,6 +132,7 @@ from dc_lesson.checks import check_fields
 from dc_lesson.nn.policies import ACTION_HIGH, ACTION_LOW, GaussianPolicy, ValueNetwork, mlp
 
 REWARD_FORMS = ("gail", "log_d", "logit")
+EXPERT_NOISE = (None, "learner")
 
 
 def _gail_ppo_default() -> _ppo.PPOConfig:
@@ -137,7 +148,9 @@ class GAILConfig(_reward_ppo.PPOImitationConfig):
     """Every knob of GAIL.  PPO's own knobs (and the run's length, ``ppo.total_steps``) live in
     ``ppo``; ``seed`` here is the run's one seed (``ppo.seed`` is ignored)."""
 
-    LATER_KNOBS = ()   # start_log_std was GAIL's from its first cells: always in its JSON
+    # start_log_std was GAIL's from its first cells (always in its JSON); knobs added later
+    # are named only when set, so stored cells keep their identity
+    LATER_KNOBS = ("expert_noise",)
 
     ppo: _ppo.PPOConfig = dataclasses.field(default_factory=_gail_ppo_default)
     disc_hidden: tuple[int, ...] = (64, 64)   # hidden layer sizes of the discriminator MLP
@@ -148,6 +161,9 @@ class GAILConfig(_reward_ppo.PPOImitationConfig):
     disc_steps: int = 8             # discriminator gradient steps per PPO iteration
     disc_batch: int = 512           # expert pairs and learner pairs in each of those steps
     grad_penalty: float = 0.0       # weight of the gradient penalty (0: none); DAC uses 10
+    expert_noise: str | None = None  # "learner": D sees the expert's actions with the
+    #                                 learner's current action noise added (module doc);
+    #                                 None: as recorded
     reward_form: str = "gail"       # "gail": -log(1-D); "log_d": log D; "logit": log D/(1-D)
     reward_scale: float = 1.0       # multiplies the reward (PPO here does not normalise it)
     value_warmup: int = 2           # first iterations that train only the value network
@@ -161,6 +177,9 @@ class GAILConfig(_reward_ppo.PPOImitationConfig):
     def __post_init__(self):
         check_fields(self, positive=("disc_lr", "disc_steps", "disc_batch", "reward_scale"),
                      non_negative=("grad_penalty", "value_warmup", "entropy", "seed"))
+        if self.expert_noise not in EXPERT_NOISE:
+            raise ValueError(f"unknown expert_noise {self.expert_noise!r}; choose None or "
+                             f"'learner'")
         if self.reward_form not in REWARD_FORMS:
             raise ValueError(f"unknown reward_form {self.reward_form!r}; choose one of "
                              f"{', '.join(REWARD_FORMS)}")
@@ -327,6 +346,17 @@ def discriminator_step(disc: Discriminator, optimizer: torch.optim.Optimizer, ex
     return {k: float(v.detach()) for k, v in terms.items()}
 
 
+def expert_actions(actions: torch.Tensor, policy, config: GAILConfig,
+                   generator: torch.Generator) -> torch.Tensor:
+    """The expert's actions as D sees them: as recorded, or (``expert_noise="learner"``) with
+    the learner's current Gaussian action noise added, so that D cannot tell the learner from
+    mean-action demonstrations by the noise alone."""
+    if config.expert_noise is None:
+        return actions
+    std = policy.log_std.detach().exp()
+    return actions + std * torch.randn(actions.shape, generator=generator)
+
+
 expert_pairs = _bc.pairs   # all (state, action) pairs of the demonstrations, as tensors
 
 
@@ -400,6 +430,10 @@ def train(task: str, demos, config: GAILConfig = GAILConfig(), *,
     init_seed, sample_seed, env_seed, disc_seed = (
         int(s) for s in np.random.SeedSequence(config.seed).generate_state(4))
     given = policy is not None
+    if config.expert_noise is not None and given and not policy.gaussian:
+        raise ValueError("expert_noise='learner' adds the learner's Gaussian noise to the "
+                         "expert's actions; this policy has no single log-std (a mixture): "
+                         "set expert_noise=None")
     with torch.random.fork_rng(devices=[]):
         torch.manual_seed(init_seed)
         if policy is None:
@@ -450,7 +484,9 @@ def train(task: str, demos, config: GAILConfig = GAILConfig(), *,
         for _ in range(config.disc_steps):
             ie = torch.randint(len(e_obs), (config.disc_batch,), generator=disc_generator)
             il = torch.randint(len(l_obs), (config.disc_batch,), generator=disc_generator)
-            steps.append(discriminator_step(disc, disc_optimizer, e_obs[ie], e_act[ie],
+            steps.append(discriminator_step(disc, disc_optimizer, e_obs[ie],
+                                            expert_actions(e_act[ie], policy, config,
+                                                           disc_generator),
                                             l_obs[il], l_act[il], config.grad_penalty,
                                             disc_generator))
 
@@ -458,7 +494,8 @@ def train(task: str, demos, config: GAILConfig = GAILConfig(), *,
         with torch.no_grad():
             f_learner = disc(batch.obs, batch.actions)                    # (T, N)
             ie = torch.randint(len(e_obs), (len(l_obs),), generator=disc_generator)
-            f_expert = disc(e_obs[ie], e_act[ie])
+            f_expert = disc(e_obs[ie], expert_actions(e_act[ie], policy, config,
+                                                      disc_generator))
             rewards = config.reward_scale * reward_from_logit(f_learner, config.reward_form)
 
         # 4. PPO on that reward
@@ -505,5 +542,5 @@ def train(task: str, demos, config: GAILConfig = GAILConfig(), *,
 
 
 __all__ = ["CHECKPOINT_FORMAT", "Discriminator", "GAILConfig", "REWARD_FORMS", "preset", "sized",
-           "discriminator_loss", "discriminator_step", "expert_pairs", "load_checkpoint",
+           "discriminator_loss", "discriminator_step", "expert_actions", "expert_pairs", "load_checkpoint",
            "reward_from_logit", "save_checkpoint", "train"]

@@ -29,6 +29,15 @@ def fmt(mean: float, lo: float | None = None, hi: float | None = None, digits: i
     return f"{mean:.{digits}f} [{lo:.{digits}f}, {hi:.{digits}f}]"
 
 
+def stored(name: str) -> dict | None:
+    """A study's stored aggregate ``data/results/NAME``, or None while it has not been made
+    (a chapter then says which command makes it)."""
+    try:
+        return read_result(name)
+    except FileNotFoundError:
+        return None
+
+
 def t_interval(values) -> tuple[float, float, float]:
     """``(mean, lo, hi)``: the 95% t interval of the mean of ``values`` (per-seed values of a
     row, or per-seed paired differences): the interval :mod:`verdicts`' rule uses."""

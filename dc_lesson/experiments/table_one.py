@@ -17,7 +17,6 @@ import statistics
 from dc_lesson.evaluation import stats
 from dc_lesson.experiments import claims, report, verdicts as _verdicts
 from dc_lesson.experiments.report import fmt, fmt_entry
-from dc_lesson.storage import read_result
 
 RESULT = "table1.json"
 TASKS = ("reacher2", "reacher4", "halfcheetah2")
@@ -86,10 +85,7 @@ CONTROLS = (
 
 def load(name: str = RESULT) -> dict | None:
     """The aggregate, or None while the study has not been aggregated."""
-    try:
-        return read_result(name)
-    except FileNotFoundError:
-        return None
+    return report.stored(name)
 
 
 def status(rec: dict) -> str:

@@ -25,8 +25,8 @@ import numpy as np
 from dc_lesson.evaluation import stats
 from dc_lesson.experiments import ablations as _ablations, claims as _claims
 from dc_lesson.experiments import verdicts as _verdicts
+from dc_lesson.experiments import report
 from dc_lesson.experiments.report import band, fmt, fmt_entry
-from dc_lesson.storage import read_result
 
 kendall_tau = stats.kendall_tau   # the chapter's name for it
 
@@ -127,10 +127,7 @@ UNCERTAIN = {
 
 def load(name: str = RESULT) -> dict | None:
     """The aggregate, or None while the study has not been aggregated."""
-    try:
-        return read_result(name)
-    except FileNotFoundError:
-        return None
+    return report.stored(name)
 
 
 def paper_rows() -> list[dict]:

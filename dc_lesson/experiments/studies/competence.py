@@ -206,7 +206,8 @@ def aggregate(records, b) -> dict:
                     "final": res["final"]["scaled_return"],
                     "curve": [p["scaled_return"] for p in res["curve"]],
                     "curve_steps": [p["steps"] for p in res["curve"]],
-                    "train_seconds": res["train_seconds"]})
+                    # wall-clock figures live in the record's timing (cells.split_timing)
+                    "train_seconds": r.get("timing", {}).get("train_seconds")})
     return {"gate": gate(obs), "rules": {"keep_tolerance": KEEP_TOLERANCE,
                                          "keep_share": KEEP_SHARE, "max_dip": MAX_DIP,
                                          "learn_floor": LEARN_FLOOR,

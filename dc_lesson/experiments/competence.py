@@ -1,0 +1,142 @@
+"""The competence gate in the book: ``data/results/competence.json`` (``dc-lesson sweep
+competence``, then ``dc-lesson aggregate competence``, with ``--partial`` while it
+accumulates) as chapter 5's table, curves and sentences.
+
+The study, its thresholds and the gate's rule are :mod:`dc_lesson.experiments.studies.competence`;
+this module only reads its aggregate.  Every number it shows is a stored observation; every
+word comes from the study's :func:`~dc_lesson.experiments.studies.competence.keeps` and
+:func:`~dc_lesson.experiments.studies.competence.learns`, applied to the seeds on record, so
+a part that has not run says so instead of passing.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from dc_lesson.experiments import report
+from dc_lesson.experiments.studies import competence as _study
+
+RESULT = "competence.json"
+NAMES = {"ppo": "PPO (task reward)", "gail": "GAIL", "dril": "DRIL", "pwil": "PWIL",
+         "ndi": "NDI", "gpril": "GPRIL", "dc": "DC"}
+
+
+def load(name: str = RESULT) -> dict | None:
+    """The aggregate, or None while the study has not been aggregated."""
+    return report.stored(name)
+
+
+def status(rec: dict) -> str:
+    """``N of M cells (complete|still accumulating), budget, interactions, CPU-hours``."""
+    c = rec["cells"]
+    done = "complete" if rec.get("complete", True) else "still accumulating"
+    steps = rec["steps"]
+    return (f"{c['n']} of {c.get('of', c['n'])} cells ({done}), budget {rec['budget']}, "
+            f"{steps['keep']:,} interactions to keep a start, {steps['learn']:,} to learn; "
+            f"{c['wall_seconds'] / 3600:.1f} CPU-hours of cells")
+
+
+def _runs(rec: dict, learner: str, part: str, task: str) -> list[dict]:
+    return sorted((o for o in rec["observations"] if o["row"] == learner
+                   and o["part"] == part and o["task"] == task), key=lambda o: o["seed"])
+
+
+def rows(rec: dict) -> list[dict]:
+    """One row per (learner, part, task) with seeds on record: the seeds, the mean start and
+    final scaled return, the worst checkpoint's fall below the start, and the study's word
+    for that part on those seeds ("—" where no seed has run)."""
+    out = []
+    for learner in _study.LEARNERS:
+        for part, tasks, rule in (("keep", _study.KEEP_TASKS, _study.keeps),
+                                  ("learn", _study.LEARN_TASKS, _study.learns)):
+            for task in tasks:
+                runs = _runs(rec, learner, part, task)
+                if not runs:
+                    out.append({"learner": NAMES[learner], "part": part, "task": task,
+                                "seeds": 0, "start": None, "final": None, "worst dip": None,
+                                "word": "not run yet"})
+                    continue
+                ok, why = rule([{k: r[k] for k in ("start", "final", "curve")} for r in runs])
+                dip = max(r["start"] - min(r["curve"] or [r["final"]]) for r in runs)
+                word = {True: "passes", False: "fails: " + why,
+                        None: "not informative: " + why}[ok]
+                out.append({"learner": NAMES[learner], "part": part, "task": task,
+                            "seeds": len(runs),
+                            "start": float(np.mean([r["start"] for r in runs])),
+                            "final": float(np.mean([r["final"] for r in runs])),
+                            "worst dip": float(dip), "word": word})
+    return out
+
+
+def gate_words(rec: dict) -> dict[str, str]:
+    """Per learner, the gate's word on the seeds on record: "passed" (every part passes),
+    "failed: why" (a part on record fails), or "not yet shown: why" (a part not run or not
+    informative, none failing)."""
+    out: dict[str, list] = {}
+    for r in rows(rec):
+        out.setdefault(r["learner"], []).append(r)
+    words = {}
+    for learner, parts in out.items():
+        failed = [f"{r['part']} on {r['task']}: {r['word'][len('fails: '):]}" for r in parts
+                  if r["word"].startswith("fails")]
+        open_ = [f"{r['part']} on {r['task']}" for r in parts if r["word"] != "passes"
+                 and not r["word"].startswith("fails")]
+        words[learner] = ("failed: " + "; ".join(failed) if failed else
+                          "not yet shown: " + ", ".join(open_) + " to run" if open_ else
+                          "passed")
+    return words
+
+
+def overview(rec: dict) -> dict[str, dict[str, str]]:
+    """Learner -> {"part: task": "passes" | "fails" | "not run" | "not informative"}: the
+    table's shape at a glance."""
+    out: dict[str, dict[str, str]] = {}
+    for r in rows(rec):
+        w = r["word"]
+        short = ("passes" if w == "passes" else "fails" if w.startswith("fails") else
+                 "not run" if w == "not run yet" else "not informative")
+        out.setdefault(r["learner"], {})[f"{r['part']}: {r['task']}"] = (
+            short + (f" ({r['seeds']})" if r["seeds"] else ""))
+    return out
+
+
+def curves(rec: dict, part: str, task: str) -> dict[str, dict]:
+    """Per learner with seeds on record, its mean-action checkpoint curve: ``steps``, the
+    mean over seeds and the 95% t interval (``lo``, ``hi``; equal to the mean with one seed),
+    and ``seeds``.  Checkpoints are compared where every seed has one."""
+    out = {}
+    for learner in _study.LEARNERS:
+        runs = _runs(rec, learner, part, task)
+        if not runs:
+            continue
+        n = min(len(r["curve"]) for r in runs)
+        if n == 0:
+            continue
+        bands = [report.t_interval([r["curve"][i] for r in runs]) if len(runs) > 1
+                 else (runs[0]["curve"][i],) * 3 for i in range(n)]
+        out[NAMES[learner]] = {"steps": runs[0]["curve_steps"][:n],
+                               "mean": [b[0] for b in bands], "lo": [b[1] for b in bands],
+                               "hi": [b[2] for b in bands], "seeds": len(runs),
+                               "start": float(np.mean([r["start"] for r in runs]))}
+    return out
+
+
+def sentence(rec: dict) -> str:
+    """What the gate says so far, in one paragraph rendered from the record."""
+    words = gate_words(rec)
+    passed = [k for k, w in words.items() if w == "passed"]
+    failed = [k for k, w in words.items() if w.startswith("failed")]
+    pending = [k for k, w in words.items() if w.startswith("not yet")]
+    parts: list[str] = []
+    if passed:
+        parts.append("passed the whole gate: " + ", ".join(passed))
+    if failed:
+        parts.append("failed a part already run (no verdict of the book uses them as a "
+                     "comparator): " + ", ".join(failed))
+    if pending:
+        parts.append("not yet shown, with parts still to run: " + ", ".join(pending))
+    return "On the cells on record, " + "; ".join(parts) + "."
+
+
+__all__ = ["NAMES", "RESULT", "curves", "gate_words", "load", "overview", "rows", "sentence",
+           "status"]
