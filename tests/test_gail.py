@@ -1,6 +1,7 @@
 """GAIL: the discriminator learns and its reward prefers the expert, the reward forms by hand,
 GAIL beats a random policy on cartpole (permutation test), determinism, exact resume from a
-checkpoint, the frozen normaliser, clear errors, and the benchmark's small pieces."""
+checkpoint (one written before GAIL moved onto the shared loop too), the frozen normaliser, clear
+errors, and the benchmark's small pieces."""
 
 import copy
 import dataclasses
@@ -160,6 +161,58 @@ def test_checkpoint_resume_equals_an_uninterrupted_run(demos1, tmp_path):
     with pytest.raises(PolicyFileError, match="disc_lr"):
         gail.train("reacher1", demos1, dataclasses.replace(cfg, disc_lr=1e-3), progress=False,
                    checkpoint=path)
+
+
+# The entries of a GAIL checkpoint written before GAIL ran on _reward_ppo.run (b6662dd and
+# earlier): the loop writes the same ones plus ``state``, a learner's other state (GAIL has none).
+OLD_CHECKPOINT = ["config", "disc", "disc_args", "disc_generator", "disc_optimizer", "envs",
+                  "format", "generator", "log", "optimizer", "policy", "policy_args", "task",
+                  "update", "value", "value_args", "version"]
+
+
+def test_a_checkpoint_from_before_the_shared_loop_resumes_exactly(demos1, tmp_path):
+    from dc_lesson.nn.checkpoint import atomic_torch_save
+    cfg = _tiny(total_steps=768, expert_noise="learner", grad_penalty=1.0)
+    full_pi, full_d, full_log = _three(gail.train("reacher1", demos1, cfg, progress=False))
+    path = tmp_path / "old.ckpt"
+    gail.train("reacher1", demos1, cfg, progress=False, checkpoint=path, checkpoint_every=1,
+               callback=lambda row, pi: row["update"] == 2)
+    ckpt = torch.load(path, weights_only=True)
+    assert ckpt.pop("state") == {} and sorted(ckpt) == OLD_CHECKPOINT
+    assert (ckpt["format"], ckpt["version"]) == ("dc_lesson.gail.checkpoint", 1)
+    atomic_torch_save(ckpt, path)                  # the old layout, with its checksum
+    pi, d, log = _three(gail.train("reacher1", demos1, cfg, progress=False, checkpoint=path))
+    _same_log(full_log, log)
+    _same_state(full_pi, pi)
+    _same_state(full_d, d)
+
+
+def test_the_discriminator_is_drawn_after_the_critic_from_the_init_seed():
+    """The order of the initialisation's draws (policy, critic, then D) that GAIL's stored
+    cells were made with, now that the shared loop's make_networks builds them."""
+    from dc_lesson import tasks
+    from dc_lesson.algorithms import _reward_ppo
+    from dc_lesson.nn.policies import ValueNetwork
+    spec, pcfg = tasks.spec("reacher1"), ppo.PPOConfig()
+    e_obs = torch.randn(50, spec.obs_dim)
+    pi, value, disc = _reward_ppo.make_networks(
+        spec, pcfg, e_obs, None, 11, lambda: gail.Discriminator(spec.obs_dim, spec.act_dim))
+    torch.manual_seed(11)
+    GaussianPolicy(spec.obs_dim, spec.act_dim, pcfg.hidden, log_std_init=pcfg.log_std_init,
+                   norm_obs=pcfg.norm_obs)
+    ValueNetwork(spec.obs_dim, pcfg.hidden, norm_obs=pcfg.norm_obs)
+    _same_state(gail.Discriminator(spec.obs_dim, spec.act_dim), disc)
+
+
+def test_gail_keeps_nn_fast_s_adamw_for_the_policy_and_critic(demos1, monkeypatch):
+    """GAIL's cells were made with nn.fast.adamw, fused on the fast path (not the bits of
+    torch's AdamW, which the shared loop gives DRIL, PWIL and NDI); GAIL keeps it."""
+    from dc_lesson.nn import fast
+    built, real = [], fast.adamw
+    monkeypatch.setattr(fast, "adamw", lambda *a, **k: built.append(real(*a, **k)) or built[-1])
+    with fast.on():
+        gail.train("reacher1", demos1, _tiny(), progress=False, callback=lambda row, pi: True)
+    assert len(built) == 1 and [g["fused"] for g in built[0].param_groups] == [True, True]
 
 
 def test_the_warm_start_normaliser_stays_frozen(demos1):

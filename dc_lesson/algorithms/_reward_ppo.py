@@ -1,8 +1,9 @@
-"""PPO on an imitation reward: the loop DRIL, PWIL and NDI share.
+"""PPO on an imitation reward: the loop GAIL, DRIL, PWIL and NDI share.
 
-It is GAIL's loop (:mod:`dc_lesson.algorithms.gail`) with the discriminator taken out: each of
-those learners brings its own ``reward(batch)`` (and, DRIL, an extra step after PPO's), and
-everything else is done exactly as GAIL does it, so the four differ only in their rewards:
+Each of them is PPO on a reward it computes from the batch the policy just collected; the
+reward (GAIL's: its discriminator's steps on that batch, then -log(1 - D)) and, for DRIL, a
+step after PPO's are the learner's own, and everything else is done here, once, so the four
+differ only in their rewards:
 
     collect n_envs x n_steps pairs with the stochastic policy             (ppo.collect_batch)
     r_t <- the learner's reward of the batch                              (hooks.reward)
@@ -11,7 +12,8 @@ everything else is done exactly as GAIL does it, so the four differ only in thei
     [the learner's own step after PPO's]                                  (hooks.after_update)
 
 * The policy's and the critic's observation normalisers are set once from the expert's states
-  and frozen (GAIL's reasons: a BC warm start keeps its meaning, one input scale for all).
+  and frozen (a BC warm start keeps its meaning, one input scale for all; the reasons are in
+  :mod:`dc_lesson.algorithms.gail`'s docstring).
 * ``value_warmup`` first iterations train only the critic; the learning rate decays linearly.
 * A checkpoint holds the policy, the critic, their optimiser, PPO's generator, the
   environments, the log, and whatever the learner declares in its hooks (networks, optimisers,
@@ -42,8 +44,12 @@ from dc_lesson.nn.policies import GaussianPolicy, ValueNetwork
 
 
 def imitation_ppo_default() -> _ppo.PPOConfig:
-    """GAIL's PPO settings (``gail._gail_ppo_default``): 8 x 512 steps, 5 epochs of 8
-    minibatches, lr 3e-4, no entropy bonus; the learners share them so their costs compare."""
+    """PPO's settings for the learners on this loop (GAIL's from the start): 8 x 512 steps,
+    5 epochs of 8 minibatches, lr 3e-4, no entropy bonus; shared so their costs compare.
+
+    Larger batches and fewer, larger minibatches than PPOConfig's defaults: 40 gradient steps
+    per 4096 pairs instead of 320 per 2048 (the update, not the simulator, is what costs here),
+    and a smaller learning rate, so a BC start is refined, not replaced."""
     return _ppo.PPOConfig(n_envs=8, n_steps=512, n_epochs=5, n_minibatches=8, lr=3e-4,
                           total_steps=300_000, ent_coef=0.0)
 
@@ -97,9 +103,11 @@ def sized(base, total_steps: int, seed: int):
 
 
 def make_networks(spec, pcfg: _ppo.PPOConfig, expert_obs: torch.Tensor,
-                  policy: GaussianPolicy | None, init_seed: int):
+                  policy: GaussianPolicy | None, init_seed: int, *more: Callable):
     """The policy (a fresh one if None, its normaliser set from the expert's states) and a
-    critic on the same frozen input scale."""
+    critic on the same frozen input scale, drawn from ``init_seed``; then ``more()`` for each
+    builder of the learner's own networks, drawn from the same stream after the critic (GAIL's
+    discriminator).  Returns ``(policy, value_fn, *built)``."""
     with torch.random.fork_rng(devices=[]):
         torch.manual_seed(init_seed)
         if policy is None:
@@ -107,9 +115,10 @@ def make_networks(spec, pcfg: _ppo.PPOConfig, expert_obs: torch.Tensor,
                                     log_std_init=pcfg.log_std_init, norm_obs=pcfg.norm_obs)
             policy.update_obs_norm(expert_obs)
         value_fn = ValueNetwork(spec.obs_dim, pcfg.hidden, norm_obs=policy.obs_norm is not None)
+        built = [build() for build in more]
     if value_fn.obs_norm is not None:
         value_fn.obs_norm.load_state_dict(policy.obs_norm.state_dict())
-    return policy, value_fn
+    return (policy, value_fn, *built)
 
 
 @dataclasses.dataclass
@@ -120,7 +129,10 @@ class Hooks:
     ``after_update(batch)`` (optional) runs after PPO's update and returns logged floats;
     ``networks``, ``optimizers`` and ``generators`` are saved in the checkpoint by name, and
     ``get_state()`` / ``set_state(dict)`` any other state (tensors); ``models`` goes into the
-    :class:`TrainResult`.
+    :class:`TrainResult`.  ``optimizer(param_groups, lr=, eps=, weight_decay=)`` builds the
+    policy's and the critic's optimiser: torch's AdamW, or (GAIL)
+    :func:`dc_lesson.nn.fast.adamw`, the same numbers on the reader's path but fused on the
+    fast path, which rounds differently; each learner keeps the one its stored cells used.
     """
 
     name: str
@@ -132,6 +144,9 @@ class Hooks:
     get_state: Callable | None = None
     set_state: Callable | None = None
     models: dict = dataclasses.field(default_factory=dict)
+    optimizer: Callable = torch.optim.AdamW
+    shown: tuple[str, ...] = ()   # logged terms the progress bar shows beside the return,
+    #                               the reward and the speed (GAIL: D's two accuracies)
 
 
 CHECKPOINT_VERSION = 1
@@ -142,9 +157,10 @@ def run(task: str, config, hooks: Hooks, policy: GaussianPolicy, value_fn: Value
         checkpoint_every: int) -> TrainResult:
     """The loop of the module docstring; returns the learner's :class:`TrainResult`."""
     pcfg = config.ppo_config
-    optimizer = torch.optim.AdamW([{"params": list(policy.parameters())},
-                                   {"params": list(value_fn.parameters())}],
-                                  lr=pcfg.lr, eps=1e-5, weight_decay=pcfg.weight_decay)
+    # two parameter groups, so the value warm-up can hold the policy still
+    optimizer = hooks.optimizer([{"params": list(policy.parameters())},
+                                 {"params": list(value_fn.parameters())}],
+                                lr=pcfg.lr, eps=1e-5, weight_decay=pcfg.weight_decay)
     generator = torch.Generator().manual_seed(sample_seed)
     # ppo.terminate (a training-only termination, e.g. hopper-fall; None in the presets)
     envs = _ppo.EnvBatch(task, pcfg.n_envs, env_seed, pcfg.episode_steps, pcfg.terminate)
@@ -164,6 +180,7 @@ def run(task: str, config, hooks: Hooks, policy: GaussianPolicy, value_fn: Value
     n_updates = pcfg.n_updates
     bar = _progress.bar(total=n_updates, initial=first, desc=f"{hooks.name.upper()} {task}",
                         unit="iter", enabled=progress)
+    last_return = math.nan     # the bar shows the last batch's that finished an episode
     for update in range(first, n_updates):
         start = time.perf_counter()
         lr = pcfg.lr * (1 - update / n_updates) if pcfg.anneal_lr else pcfg.lr
@@ -195,7 +212,11 @@ def run(task: str, config, hooks: Hooks, policy: GaussianPolicy, value_fn: Value
                      optimizers=optimizers, generators=generators, envs=envs, log=log,
                      state=state)
         bar.update(1)
-        bar.set_postfix(r=f"{row['reward_mean']:.2f}", sps=f"{row['steps_per_second']:.0f}")
+        if batch.episode_returns:
+            last_return = row["episode_return"]
+        bar.set_postfix(ret=f"{last_return:.0f}", r=f"{row['reward_mean']:.2f}",
+                        **{k: f"{row[k]:.2f}" for k in hooks.shown},
+                        sps=f"{row['steps_per_second']:.0f}")
         if callback is not None and callback(row, policy):
             break
     bar.close()

@@ -47,13 +47,14 @@ look expert-like, and one mode done well pays as much per step as all modes done
 until D learns that the learner's pairs all sit in one mode and lowers its reward there
 (the chase that can oscillate between modes rather than cover them).  See chapter 02.
 
-Pseudo-code (one iteration of :func:`train`):
+Pseudo-code (one iteration of :func:`train`; the loop is PPO on an imitation reward,
+:func:`dc_lesson.algorithms._reward_ppo.run`, and the discriminator is GAIL's reward in it):
 
     collect n_envs x n_steps pairs with the stochastic policy             (ppo.collect_batch)
     for k in 1..disc_steps:                                               (discriminator_step)
         B_E <- disc_batch expert pairs, B_pi <- disc_batch learner pairs
         D <- Adam step on BCE(D(B_E), 1) + BCE(D(B_pi), 0) [+ gp * penalty]
-    r_t <- -log(1 - D(s_t, a_t)) for the whole batch                      (reward)
+    r_t <- -log(1 - D(s_t, a_t)) for the whole batch                      (reward_from_logit)
     advantages <- GAE(r, V)                                               (ppo.compute_gae)
     pi, V <- PPO's clipped-surrogate epochs                               (ppo.ppo_update)
 
@@ -102,45 +103,34 @@ Implementation details, each a field of :class:`GAILConfig`:
 
 Determinism: ``config.seed`` decides the initialisation of the networks, one generator for the
 action noise and PPO's minibatch order, the stream of episode seeds and one generator for the
-discriminator's minibatches (four seeds from NumPy's ``SeedSequence``, as in ``ppo.py``).  A
-checkpoint stores all of it, so a resumed run ends exactly where an uninterrupted one does.
+discriminator's minibatches and the expert's action noise (four seeds from NumPy's
+``SeedSequence``, as in ``ppo.py``).  A checkpoint (``_reward_ppo.run``'s, with the
+discriminator, its optimiser and its generator) stores all of it, so a resumed run ends
+exactly where an uninterrupted one does.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import json
-import math
-import pathlib
-import time
 from typing import Callable
 
 import numpy as np
 import torch
 from torch import nn
 
-from dc_lesson import progress as _progress
 from dc_lesson import timing as _timing
 from dc_lesson import tasks as _tasks
 from dc_lesson.algorithms import _reward_ppo
 from dc_lesson.algorithms import base as _base
 from dc_lesson.algorithms import bc as _bc
 from dc_lesson.algorithms import ppo as _ppo
-from dc_lesson.algorithms.base import TrainResult, check_inputs, load_run, save_run
-from dc_lesson.nn import fast as _fast
+from dc_lesson.algorithms.base import TrainResult, check_inputs
 from dc_lesson.checks import check_fields
-from dc_lesson.nn.policies import ACTION_HIGH, ACTION_LOW, GaussianPolicy, ValueNetwork, mlp
+from dc_lesson.nn import fast as _fast
+from dc_lesson.nn.policies import ACTION_HIGH, ACTION_LOW, GaussianPolicy, mlp
 
 REWARD_FORMS = ("gail", "log_d", "logit")
 EXPERT_NOISE = (None, "learner")
-
-
-def _gail_ppo_default() -> _ppo.PPOConfig:
-    # PPO for GAIL: larger batches and fewer, larger minibatches than PPOConfig's defaults;
-    # 40 gradient steps per 4096 pairs instead of 320 per 2048 (the update, not the simulator,
-    # is what costs here), a smaller learning rate so the BC start is refined, not replaced.
-    # DRIL, PWIL and NDI share these settings (_reward_ppo.imitation_ppo_default).
-    return _reward_ppo.imitation_ppo_default()
 
 
 @dataclasses.dataclass(frozen=True)
@@ -152,7 +142,9 @@ class GAILConfig(_reward_ppo.PPOImitationConfig):
     # are named only when set, so stored cells keep their identity
     LATER_KNOBS = ("expert_noise",)
 
-    ppo: _ppo.PPOConfig = dataclasses.field(default_factory=_gail_ppo_default)
+    # PPO's settings for GAIL (and DRIL, PWIL, NDI): larger batches, fewer and larger
+    # minibatches, a smaller learning rate than PPOConfig's (imitation_ppo_default says why)
+    ppo: _ppo.PPOConfig = dataclasses.field(default_factory=_reward_ppo.imitation_ppo_default)
     disc_hidden: tuple[int, ...] = (64, 64)   # hidden layer sizes of the discriminator MLP
     disc_activation: str = "tanh"   # its activation
     disc_actions: bool = True       # D(s, a) (GAIL); False: D(s), a state-only discriminator
@@ -176,28 +168,9 @@ class GAILConfig(_reward_ppo.PPOImitationConfig):
 
     def __post_init__(self):
         check_fields(self, positive=("disc_lr", "disc_steps", "disc_batch", "reward_scale"),
-                     non_negative=("grad_penalty", "value_warmup", "entropy", "seed"))
-        if self.expert_noise not in EXPERT_NOISE:
-            raise ValueError(f"unknown expert_noise {self.expert_noise!r}; choose None or "
-                             f"'learner'")
-        if self.reward_form not in REWARD_FORMS:
-            raise ValueError(f"unknown reward_form {self.reward_form!r}; choose one of "
-                             f"{', '.join(REWARD_FORMS)}")
-        for name in ("disc_steps", "disc_batch"):
-            if getattr(self, name) < 1:
-                raise ValueError(f"GAILConfig.{name} must be at least 1, got "
-                                 f"{getattr(self, name)}")
-        for name in ("disc_lr", "reward_scale"):
-            if not getattr(self, name) > 0:
-                raise ValueError(f"GAILConfig.{name} must be positive, got "
-                                 f"{getattr(self, name)}")
-        if self.grad_penalty < 0 or self.entropy < 0 or self.value_warmup < 0:
-            raise ValueError("GAILConfig.grad_penalty, entropy and value_warmup must be >= 0")
-        if not isinstance(self.ppo, _ppo.PPOConfig):
-            raise TypeError(f"GAILConfig.ppo must be a ppo.PPOConfig, got {type(self.ppo)}")
-        if self.value_warmup >= self.ppo.n_updates:
-            raise ValueError(f"value_warmup = {self.value_warmup} leaves none of the "
-                             f"{self.ppo.n_updates} iterations to train the policy")
+                     non_negative=("grad_penalty", "value_warmup", "entropy", "seed"),
+                     choices={"expert_noise": EXPERT_NOISE, "reward_form": REWARD_FORMS})
+        self.check_ppo()
 
     @property
     def ppo_config(self) -> _ppo.PPOConfig:
@@ -360,37 +333,6 @@ def expert_actions(actions: torch.Tensor, policy, config: GAILConfig,
 expert_pairs = _bc.pairs   # all (state, action) pairs of the demonstrations, as tensors
 
 
-# -- checkpoints ---------------------------------------------------------------------------------
-
-CHECKPOINT_FORMAT = "dc_lesson.gail.checkpoint"
-CHECKPOINT_VERSION = 1
-
-
-def save_checkpoint(path, *, task: str, config: GAILConfig, update: int, policy, value_fn,
-                    disc, optimizer, disc_optimizer, generator, disc_generator, envs,
-                    log: list) -> None:
-    """Everything a GAIL run needs to go on as if it had not stopped, written atomically (the
-    layout of :func:`dc_lesson.algorithms.ppo.save_checkpoint` plus the discriminator's part)."""
-    save_run(path, CHECKPOINT_FORMAT, CHECKPOINT_VERSION, task=task,
-             config_json=config.to_json(), update=update,
-             networks={"policy": policy, "value": value_fn, "disc": disc},
-             optimizers={"optimizer": optimizer, "disc_optimizer": disc_optimizer},
-             generators={"generator": generator, "disc_generator": disc_generator},
-             envs=envs, log=log)
-
-
-def load_checkpoint(path, *, task: str, config: GAILConfig, policy, value_fn, disc, optimizer,
-                    disc_optimizer, generator, disc_generator, envs) -> tuple[int, list]:
-    """Restores a run saved by :func:`save_checkpoint` in place; returns (update, log)."""
-    update, log, _ = load_run(
-        path, CHECKPOINT_FORMAT, CHECKPOINT_VERSION, "GAIL checkpoint", task=task,
-        saved_config=lambda ckpt: json.loads(ckpt["config"]), now_config=config.to_dict(),
-        networks={"policy": policy, "value": value_fn, "disc": disc},
-        optimizers={"optimizer": optimizer, "disc_optimizer": disc_optimizer},
-        generators={"generator": generator, "disc_generator": disc_generator}, envs=envs)
-    return update, log
-
-
 # -- the loop ------------------------------------------------------------------------------------
 
 def train(task: str, demos, config: GAILConfig = GAILConfig(), *,
@@ -422,64 +364,35 @@ def train(task: str, demos, config: GAILConfig = GAILConfig(), *,
     """
     spec = _tasks.spec(task)
     check_inputs(task, demos, policy)
-    pcfg = config.ppo_config
     e_obs, e_act = expert_pairs(demos)
     if e_obs.shape[1] != spec.obs_dim or e_act.shape[1] != spec.act_dim:
         raise ValueError(f"the demonstrations have (obs, act) dims ({e_obs.shape[1]}, "
                          f"{e_act.shape[1]}); {task} has ({spec.obs_dim}, {spec.act_dim})")
-    init_seed, sample_seed, env_seed, disc_seed = (
-        int(s) for s in np.random.SeedSequence(config.seed).generate_state(4))
-    given = policy is not None
-    if config.expert_noise is not None and given and not policy.gaussian:
+    if config.expert_noise is not None and policy is not None and not policy.gaussian:
         raise ValueError("expert_noise='learner' adds the learner's Gaussian noise to the "
                          "expert's actions; this policy has no single log-std (a mixture): "
                          "set expert_noise=None")
-    with torch.random.fork_rng(devices=[]):
-        torch.manual_seed(init_seed)
-        if policy is None:
-            policy = GaussianPolicy(spec.obs_dim, spec.act_dim, pcfg.hidden,
-                                    log_std_init=pcfg.log_std_init, norm_obs=pcfg.norm_obs)
-            policy.update_obs_norm(e_obs)      # the expert's statistics, then frozen
-        value_fn = ValueNetwork(spec.obs_dim, pcfg.hidden, norm_obs=policy.obs_norm is not None)
-        disc = Discriminator(spec.obs_dim, spec.act_dim, config.disc_hidden,
-                             config.disc_activation, use_actions=config.disc_actions)
+    init_seed, sample_seed, env_seed, disc_seed = (
+        int(s) for s in np.random.SeedSequence(config.seed).generate_state(4))
     # the start's exploration noise (a mixture has its own spreads; a resume restores the saved)
-    _base.set_start_noise(policy if given else None, config.start_log_std)
-    if value_fn.obs_norm is not None:        # one input scale for policy and critic, frozen
-        value_fn.obs_norm.load_state_dict(policy.obs_norm.state_dict())
+    _base.set_start_noise(policy, config.start_log_std)
+    # the policy's (and critic's) normaliser: the expert's statistics, then frozen; D is drawn
+    # from the same seeded stream, after the critic
+    policy, value_fn, disc = _reward_ppo.make_networks(
+        spec, config.ppo_config, e_obs, policy, init_seed,
+        lambda: Discriminator(spec.obs_dim, spec.act_dim, config.disc_hidden,
+                              config.disc_activation, use_actions=config.disc_actions))
     disc.fit_input_stats(e_obs, e_act)
-    # Two parameter groups so the value warm-up can hold the policy still.
-    optimizer = _fast.adamw([{"params": list(policy.parameters())},
-                                   {"params": list(value_fn.parameters())}],
-                                  lr=pcfg.lr, eps=1e-5, weight_decay=pcfg.weight_decay)
     disc_optimizer = _fast.adam(disc.parameters(), lr=config.disc_lr)
-    generator = torch.Generator().manual_seed(sample_seed)
     disc_generator = torch.Generator().manual_seed(disc_seed)
-    # ppo.terminate (a training-only termination, e.g. hopper-fall; None in the presets)
-    envs = _ppo.EnvBatch(task, pcfg.n_envs, env_seed, pcfg.episode_steps, pcfg.terminate)
-    first, log = 0, []
-    if checkpoint is not None and pathlib.Path(checkpoint).exists():
-        first, log = load_checkpoint(
-            checkpoint, task=task, config=config, policy=policy, value_fn=value_fn, disc=disc,
-            optimizer=optimizer, disc_optimizer=disc_optimizer, generator=generator,
-            disc_generator=disc_generator, envs=envs)
 
-    n_updates = pcfg.n_updates
-    bar = _progress.bar(total=n_updates, initial=first, desc=f"GAIL {task}", unit="iter",
-                        enabled=progress)
-    last_return = math.nan
-    for update in range(first, n_updates):
-        start = time.perf_counter()
-        lr = pcfg.lr * (1 - update / n_updates) if pcfg.anneal_lr else pcfg.lr
-        optimizer.param_groups[0]["lr"] = 0.0 if update < config.value_warmup else lr
-        optimizer.param_groups[1]["lr"] = lr
-
-        # 1. the learner's pairs
-        batch = _ppo.collect_batch(envs, policy, value_fn, pcfg.n_steps, generator)
+    def discriminator_reward(batch):
+        """The pseudo-code's discriminator steps and reward on the batch the policy just
+        collected: the (n_steps, n_envs) rewards and the discriminator's logged terms."""
         l_obs = batch.obs.reshape(-1, spec.obs_dim)
         l_act = batch.actions.reshape(-1, spec.act_dim)
 
-        # 2. the discriminator: expert = 1, learner = 0
+        # the discriminator: expert = 1, learner = 0
         steps = []
         for _ in range(config.disc_steps):
             ie = torch.randint(len(e_obs), (config.disc_batch,), generator=disc_generator)
@@ -490,57 +403,33 @@ def train(task: str, demos, config: GAILConfig = GAILConfig(), *,
                                             l_obs[il], l_act[il], config.grad_penalty,
                                             disc_generator))
 
-        # 3. the reward, from the updated discriminator
+        # the reward, from the updated discriminator
         with torch.no_grad():
             f_learner = disc(batch.obs, batch.actions)                    # (T, N)
             ie = torch.randint(len(e_obs), (len(l_obs),), generator=disc_generator)
             f_expert = disc(e_obs[ie], expert_actions(e_act[ie], policy, config,
                                                       disc_generator))
             rewards = config.reward_scale * reward_from_logit(f_learner, config.reward_form)
+        return rewards, {"disc_loss": float(np.mean([s["loss"] for s in steps])),
+                         "disc_bce": float(np.mean([s["bce"] for s in steps])),
+                         "disc_penalty": float(np.mean([s["penalty"] for s in steps])),
+                         "acc_expert": float((f_expert > 0).float().mean()),
+                         "acc_learner": float((f_learner < 0).float().mean()),
+                         "d_expert": float(torch.sigmoid(f_expert).mean()),
+                         "d_learner": float(torch.sigmoid(f_learner).mean())}
 
-        # 4. PPO on that reward
-        batch.advantages, batch.returns = _ppo.compute_gae(
-            rewards, batch.values, batch.next_values, batch.dones, pcfg.gamma, pcfg.gae_lambda,
-            batch.terminals)
-        terms = _ppo.ppo_update(policy, value_fn, optimizer, batch, pcfg, generator)
-        # (No update_obs_norm here: the normalisers stay at the expert's statistics.)
-
-        if batch.episode_returns:
-            last_return = float(np.mean(batch.episode_returns))
-        row = {"update": update + 1, "steps": (update + 1) * pcfg.batch_size, "lr": lr,
-               "policy_frozen": update < config.value_warmup,
-               "disc_loss": float(np.mean([s["loss"] for s in steps])),
-               "disc_bce": float(np.mean([s["bce"] for s in steps])),
-               "disc_penalty": float(np.mean([s["penalty"] for s in steps])),
-               "acc_expert": float((f_expert > 0).float().mean()),
-               "acc_learner": float((f_learner < 0).float().mean()),
-               "d_expert": float(torch.sigmoid(f_expert).mean()),
-               "d_learner": float(torch.sigmoid(f_learner).mean()),
-               "reward_mean": float(rewards.mean()), "reward_std": float(rewards.std()),
-               **terms,
-               "episode_return": (float(np.mean(batch.episode_returns))
-                                  if batch.episode_returns else math.nan),
-               "n_episodes": len(batch.episode_returns),
-               "steps_per_second": pcfg.batch_size / (time.perf_counter() - start)}
-        log.append(row)
-        done = update + 1 == n_updates
-        if checkpoint is not None and ((update + 1) % checkpoint_every == 0 or done):
-            save_checkpoint(checkpoint, task=task, config=config, update=update + 1,
-                            policy=policy, value_fn=value_fn, disc=disc, optimizer=optimizer,
-                            disc_optimizer=disc_optimizer, generator=generator,
-                            disc_generator=disc_generator, envs=envs, log=log)
-        bar.update(1)
-        bar.set_postfix(ret=f"{last_return:.0f}", acc_e=f"{row['acc_expert']:.2f}",
-                        acc_l=f"{row['acc_learner']:.2f}", r=f"{row['reward_mean']:.2f}",
-                        sps=f"{row['steps_per_second']:.0f}")
-        if callback is not None and callback(row, policy):
-            break
-    bar.close()
-    policy.meta = {**getattr(policy, "meta", {}), "algorithm": "gail",
-                   "gail_config": config.to_dict(), "task": task}
-    return TrainResult(policy, log, {"discriminator": disc, "value": value_fn}, "gail")
+    # collecting the batch and PPO on the reward are the shared loop's; GAIL's stored cells
+    # were made with nn.fast's AdamW (fused on the fast path), which it keeps
+    hooks = _reward_ppo.Hooks("gail", discriminator_reward, networks={"disc": disc},
+                              optimizers={"disc_optimizer": disc_optimizer},
+                              generators={"disc_generator": disc_generator},
+                              models={"discriminator": disc}, optimizer=_fast.adamw,
+                              shown=("acc_expert", "acc_learner"))
+    return _reward_ppo.run(task, config, hooks, policy, value_fn, sample_seed, env_seed,
+                           progress=progress, checkpoint=checkpoint, callback=callback,
+                           checkpoint_every=checkpoint_every)
 
 
-__all__ = ["CHECKPOINT_FORMAT", "Discriminator", "GAILConfig", "REWARD_FORMS", "preset", "sized",
-           "discriminator_loss", "discriminator_step", "expert_actions", "expert_pairs", "load_checkpoint",
-           "reward_from_logit", "save_checkpoint", "train"]
+__all__ = ["Discriminator", "GAILConfig", "REWARD_FORMS", "discriminator_loss",
+           "discriminator_step", "expert_actions", "expert_pairs", "preset", "reward_from_logit",
+           "sized", "train"]
