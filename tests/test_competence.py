@@ -241,3 +241,19 @@ def test_the_chapter_curves_carry_an_interval_over_seeds():
     assert c["seeds"] == 3 and c["steps"] == [1000, 2000]
     assert abs(c["mean"][1] - 0.7) < 1e-12 and c["lo"][1] < 0.7 < c["hi"][1]
     assert report.curves(_record(obs), "keep", "hopper") == {}
+
+
+def test_each_learner_s_own_fixes_reach_its_config_and_its_cells():
+    import json
+    b = budget.get("lesson")
+    for learner, fixes in comp.FIXES.items():
+        cfg = comp.learner_config(learner, b, "keep", 0, "hopper")
+        for name, value in fixes.items():
+            got = cfg
+            for part in name.split("."):
+                got = getattr(got, part)
+            assert got == value, (learner, name)
+        assert cfg.start_log_std == -2 and cfg.ppo.terminate == "hopper-fall"   # rules kept
+        cell = next(c for c in studies.get("competence").grid(b) if c.learner == learner)
+        text = json.dumps(cell.config, sort_keys=True)
+        assert all(json.dumps(k.split(".")[-1]) in text for k in fixes)   # part of its identity
