@@ -135,7 +135,7 @@ CHAPTER_START = time.perf_counter()
 #           sample episodes with π; refit P_ω on equal numbers of
 #           expert and learner states (continuing from ω)      ─ softflow.fit_more
 #       reward scale from log P_ω of expert states             ─ dc.RewardScale
-#       repeat N times:                                        # Algorithm 2 (dc.admm_iteration)
+#       repeat N times:                                        # Algorithm 2 (dc.parameter_averaging)
 #           π' ← copy(π)                                       ─ dc.copy_into
 #           B  ← n_envs × n_steps steps of π'; r = scale(log P_ω(s'))   ─ ppo.collect_batch
 #           π  ← bc_steps BC steps on expert pairs + pairs of B          ─ bc.bc_step
@@ -844,7 +844,7 @@ if t1 is not None:
 # %% [markdown]
 # ## Exercises
 #
-# 1. **The averaging is a half step.** Run one `dc.admm_iteration` with `ppo_step=False` and
+# 1. **The averaging is a half step.** Run one `dc.parameter_averaging` with `ppo_step=False` and
 #    compare with `bc.bc_step` at half the learning rate (the test in `tests/test_dc.py` does
 #    this). What does that imply for the *effective* learning rates of the paper's update?
 # 2. **Switch the BC step off** (`DCConfig(bc_step=False)`) on `reacher4`. Without it, the

@@ -2,6 +2,7 @@
 
 import copy
 import dataclasses
+import json
 
 import numpy as np
 import pytest
@@ -76,7 +77,7 @@ def test_with_ppo_off_an_iteration_is_a_bc_step_at_half_the_learning_rate(start)
     o, a = dc.sample_bc_pairs(obs, act, batch, config, ref_gen)
     bc.bc_step(ref, ref_opt, o, a, config.max_grad_norm)
 
-    dc.admm_iteration(learner, batch, rewards, obs, act, config, gen)
+    dc.parameter_averaging(learner, batch, rewards, obs, act, config, gen)
     moved = (dc.flat(ref.parameters()) - dc.flat(start[0].parameters())).abs().max()
     assert moved > 1e-5   # the step did something
     assert torch.allclose(dc.flat(learner.pi.parameters()), dc.flat(ref.parameters()),
@@ -99,7 +100,7 @@ def test_with_bc_off_an_iteration_is_a_ppo_step_averaged_with_its_start(start):
     ref_gen.set_state(gen.get_state())
     ppo.ppo_update(ref_pi, ref_v, ref_opt, ref_batch, config.ppo_config(), ref_gen)
 
-    dc.admm_iteration(learner, batch, rewards, obs, act, config, gen)
+    dc.parameter_averaging(learner, batch, rewards, obs, act, config, gen)
     expected = (start_params + dc.flat(ref_pi.parameters())) / 2
     assert not torch.allclose(expected, start_params, atol=1e-5)
     assert torch.allclose(dc.flat(learner.pi.parameters()), expected, atol=1e-6, rtol=0)
@@ -118,7 +119,7 @@ def test_ppo_old_log_probabilities_are_those_of_pi_at_the_iteration_start(start)
 def test_consensus_admm_keeps_the_duals_balanced_and_logs_residuals(start):
     config = dataclasses.replace(TINY, update="admm", rho=0.5)
     learner, batch, rewards, obs, act, gen = _fixture_learner(start, config)
-    row = dc.admm_iteration(learner, batch, rewards, obs, act, config, gen)
+    row = dc.consensus_admm(learner, batch, rewards, obs, act, config, gen)
     u1, u2 = learner.duals
     # z = mean(x_i + u_i) and u_i += x_i - z make the scaled duals sum to zero.
     assert torch.allclose(u1 + u2, torch.zeros_like(u1), atol=1e-6)
@@ -128,6 +129,9 @@ def test_consensus_admm_keeps_the_duals_balanced_and_logs_residuals(start):
     x1 = dc.flat(dc.policy_parameters(learner.pi_bc))
     x2 = dc.flat(dc.policy_parameters(learner.pi_prime))
     assert torch.allclose(dc.flat(dc.policy_parameters(learner.pi)), (x1 + x2) / 2, atol=1e-6)
+    averaging = dc.make_learner(copy.deepcopy(start[0]), TINY, start[0].obs_dim)
+    with pytest.raises(ValueError, match="update='admm'"):   # no duals, no x_1
+        dc.consensus_admm(averaging, batch, rewards, obs, act, TINY, gen)
 
 
 def _params(policy):
@@ -164,6 +168,40 @@ def test_a_run_interrupted_after_a_loop_resumes_identical(start, tmp_path):
     bad.write_bytes(b"not a checkpoint")
     with pytest.raises(PolicyFileError, match="bad.ckpt"):
         dc.train(TASK, start[1], TINY, policy=copy.deepcopy(start[0]), progress=False, checkpoint=bad)
+
+
+def test_a_run_stopped_mid_loop_resumes_identical(start, tmp_path):
+    """Under ADMM (duals and the BC copy in the file) a run stopped by its callback in loop 1's
+    last iteration resumes from the checkpoint after that loop's first one: same parameters,
+    same log."""
+    cfg = dataclasses.replace(TINY, update="admm")
+    full = dc.train(TASK, start[1], cfg, policy=copy.deepcopy(start[0]), progress=False)
+    ckpt = tmp_path / "dc_admm.ckpt"
+    rows = []
+    part = dc.train(TASK, start[1], cfg, policy=copy.deepcopy(start[0]), progress=False,
+                    checkpoint=ckpt, checkpoint_every=1,
+                    callback=lambda row, pi: rows.append(row) or len(rows) == 4)
+    assert [(r["loop"], r["iteration"]) for r in rows] == [(0, 1), (0, 2), (1, 1), (1, 2)]
+    assert len(part.log) == len(full.log)             # the last iteration ran, unsaved
+    resumed = dc.train(TASK, start[1], cfg, policy=copy.deepcopy(start[0]), progress=False,
+                       checkpoint=ckpt)
+    assert torch.equal(_params(resumed.policy), _params(full.policy))
+    as_text = lambda log: [json.dumps({k: v for k, v in r.items() if "second" not in k})
+                           for r in log]   # as text: the file's NaNs are new objects
+    assert as_text(resumed.log) == as_text(full.log)
+
+
+def test_a_checkpoint_of_dcs_old_layout_is_refused_with_the_fix(start, tmp_path):
+    """DC's own checkpoint layout (version 1) gave way to base.save_run's (version 2); a file of
+    the old layout is refused, naming the file and what to do, not half-loaded."""
+    from dc_lesson.nn.policies import atomic_torch_save
+    old = tmp_path / "old_dc.ckpt"
+    atomic_torch_save({"format": dc.CHECKPOINT_FORMAT, "version": 1, "task": TASK,
+                       "config": TINY.to_json(), "loop": 1, "iteration": 0, "learner": {},
+                       "log": "[]"}, old)
+    with pytest.raises(PolicyFileError, match=r"old_dc\.ckpt has version 1.*delete .*old_dc"):
+        dc.train(TASK, start[1], TINY, policy=copy.deepcopy(start[0]), progress=False,
+                 checkpoint=old)
 
 
 def test_reward_scale_maps_the_expert_median_to_one_and_far_states_to_zero():

@@ -25,7 +25,8 @@ _DEFAULTS = _gail.GAILConfig()
 
 
 class DiscriminatorReward:
-    """A state-only GAIL discriminator and its reward, updated once per DC iteration."""
+    """A state-only GAIL discriminator and its reward, updated once per DC iteration.  A DC
+    checkpoint holds ``disc`` and ``optimizer`` (``dc._parts``)."""
 
     def __init__(self, expert_states: torch.Tensor, obs_dim: int, seed: int):
         with torch.random.fork_rng(devices=[]):
@@ -55,13 +56,6 @@ class DiscriminatorReward:
             "disc_loss": sum(s["loss"] for s in steps) / n,
             "disc_acc_expert": sum(s["acc_expert"] for s in steps) / n,
             "disc_acc_learner": float((logit < 0).float().mean())}
-
-    def state_dict(self) -> dict:
-        return {"disc": self.disc.state_dict(), "optimizer": self.optimizer.state_dict()}
-
-    def load_state_dict(self, state: dict) -> None:
-        self.disc.load_state_dict(state["disc"])
-        self.optimizer.load_state_dict(state["optimizer"])
 
 
 __all__ = ["DiscriminatorReward"]

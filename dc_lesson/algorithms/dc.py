@@ -16,9 +16,16 @@ log P_w(s).  The paper splits the two with a copy pi' of the policy:
 and, "based on consensus optimisation via ADMM", updates pi by a BC step, pi' by a PPO step, and
 sets both to their average z = (pi + pi') / 2.
 
-**Algorithm 1 (loops).**  Loop 0 fits P_w on expert states only, then runs Algorithm 2 for N
-iterations.  Every later loop samples learner trajectories, refits P_w (continuing from its
-weights) on equal numbers of expert and learner states, and runs Algorithm 2 again.
+**Algorithm 1 (loops),** as :func:`train` runs it (the paper's line numbers on the right):
+
+    for loop = 0 .. L-1:                                                        (line 4)
+        Stage 1, P_w (none with reward="gail"):
+            loop 0: fit P_w on expert states                                    (lines 1-2)
+            later:  T <- n_envs episodes of pi                                  (line 5)
+                    refit P_w, from its weights, on n expert + n of T's states  (lines 6-7)
+            the reward's scale from log P_w of expert states
+        Stage 2: N iterations of Algorithm 2                                    (lines 3, 8)
+        (a checkpoint every ``checkpoint_every`` iterations and at the loop's end)
 
 **Algorithm 2 (one iteration, ``update="average"``, the paper's):**
 
@@ -92,9 +99,9 @@ The paper's averaging is this with u = 0 and x_i reset to z each iteration.
   (``flow_tanh``; ``density._trace``).  Runs before 2026-12-04 used steps of 0.25, 4 nodes
   and torch's tanh (:data:`STORED_NUMERICS`); ``dc-lesson perf dc-fit --variant defaults``
   compares the two over ten seeds.  Fitted on up to ``flow_states`` expert states in loop 0
-  (``flow_iterations`` steps), refitted in later loops on the same number of expert and learner states each
-  (``flow_refit_iterations`` steps, a fresh Adam; the standardisation stays the first fit's,
-  so rewards stay comparable across loops).
+  (``flow_iterations`` steps), refitted in later loops on the same number of expert and
+  learner states each (``flow_refit_iterations`` steps, a fresh Adam; the standardisation
+  stays the first fit's, so rewards stay comparable across loops).
   Learner states for a refit come from ``n_envs`` fresh episodes of the stochastic policy, which
   count as environment interactions.
 
@@ -106,13 +113,14 @@ steps per second.
 **Determinism and checkpoints.**  ``config.seed`` decides the flow's seed, the critic's
 initialisation, one torch generator (actions, minibatches, pairs) and the episode seeds.
 :func:`train` saves everything (policies, critic, optimisers, flow, consensus variables,
-generator, environments, log) atomically after every loop and every ``checkpoint_every``
-iterations, and resumes from the file: a resumed run ends identical to an uninterrupted one.
+generator, environments, log) with :func:`~dc_lesson.algorithms.base.save_run` at the end of
+every loop and every ``checkpoint_every`` iterations, and resumes from the file: a resumed run
+ends identical to an uninterrupted one.  Algorithm 2's two updates live in
+:mod:`dc_lesson.algorithms._dc_consensus` (:func:`parameter_averaging`, :func:`consensus_admm`).
 """
 
 from __future__ import annotations
 
-import copy
 import dataclasses
 import json
 import math
@@ -128,16 +136,17 @@ from dc_lesson import timing as _timing
 from dc_lesson.algorithms import _dc_disc
 from dc_lesson.algorithms import bc as _bc
 from dc_lesson.algorithms import base as _base
-from dc_lesson.algorithms.base import TrainResult, check_inputs, checkpoint_fix
+from dc_lesson.algorithms._dc_consensus import (Learner, average_into, consensus_admm,
+                                                copy_into, flat, make_learner,
+                                                parameter_averaging, policy_parameters,
+                                                sample_bc_pairs)
+from dc_lesson.algorithms.base import TrainResult, check_inputs, load_run, save_run
 from dc_lesson.checks import check_fields
 from dc_lesson.density import softflow as _softflow
 from dc_lesson import tasks as _tasks
 from dc_lesson.data import Demonstrations
-from dc_lesson.nn import fast as _fast
-from dc_lesson.nn.policies import (GaussianPolicy, PolicyFileError, ValueNetwork,
-                                atomic_torch_save, load_checked)
-from dc_lesson.algorithms.ppo import (EnvBatch, PPOConfig, check_checkpoint, collect_batch, compute_gae,
-                           ppo_update)
+from dc_lesson.nn.policies import GaussianPolicy
+from dc_lesson.algorithms.ppo import EnvBatch, PPOConfig, collect_batch
 
 UPDATES = ("average", "admm")
 REWARDS = ("scaled", "raw", "gail")
@@ -265,7 +274,7 @@ class DCConfig:
         return json.dumps(d, sort_keys=True)
 
 
-# -- parameters as flat vectors ------------------------------------------------------------------
+# -- presets -------------------------------------------------------------------------------------
 
 # The settings of every DC run of the benchmarks; the iterations follow the budget.
 DC_DEFAULTS = dict(loops=2)
@@ -283,43 +292,6 @@ def preset(budget, seed: int = 0, **overrides) -> DCConfig:
         per_loop = max(1, budget.il_steps // (base.loops * base.batch_size))
         base = dataclasses.replace(base, iterations=per_loop)
     return base
-
-
-def policy_parameters(policy: GaussianPolicy, include_log_std: bool = True) -> list:
-    """The parameters DC averages: the mean network's, and the log-std if asked (a mixture
-    policy, whose spreads are outputs of its network, averages all its parameters)."""
-    if not policy.gaussian:
-        return list(policy.parameters())
-    return list(policy.mean_net.parameters()) + ([policy.log_std] if include_log_std else [])
-
-
-def flat(params) -> torch.Tensor:
-    return torch.cat([p.detach().reshape(-1) for p in params])
-
-
-@torch.no_grad()
-def average_into(target: GaussianPolicy, other: GaussianPolicy,
-                 average_log_std: bool = True) -> None:
-    """target <- (target + other) / 2, element-wise, over the mean network's parameters and
-    (with ``average_log_std``) the log-std; without it, target takes other's log-std."""
-    for p, q in zip(policy_parameters(target, False), policy_parameters(other, False)):
-        p.add_(q).mul_(0.5)
-    if not target.gaussian:
-        return     # a mixture: its spreads are network outputs, averaged with the rest
-    if average_log_std:
-        target.log_std.add_(other.log_std).mul_(0.5)
-    else:
-        target.log_std.copy_(other.log_std)
-
-
-@torch.no_grad()
-def copy_into(target: torch.nn.Module, source: torch.nn.Module) -> None:
-    """Copies parameters and buffers in place (so an optimiser holding ``target``'s tensors
-    keeps its state)."""
-    for p, q in zip(target.parameters(), source.parameters()):
-        p.copy_(q)
-    for b, c in zip(target.buffers(), source.buffers()):
-        b.copy_(c)
 
 
 # -- the reward ----------------------------------------------------------------------------------
@@ -349,183 +321,9 @@ def state_log_density(flow: _softflow.SoftFlow, states: torch.Tensor) -> torch.T
     return logp.reshape(shape)
 
 
-# -- one iteration of Algorithm 2 -----------------------------------------------------------------
-
-@dataclasses.dataclass
-class Learner:
-    """Everything Algorithm 2 updates.  ``pi`` is the policy (z under ADMM); ``pi_prime`` its
-    PPO copy; ``pi_bc`` the BC copy x_1 under ADMM (None under averaging, where pi itself takes
-    the BC step); ``duals`` the scaled dual vectors (u_1, u_2) under ADMM."""
-    pi: GaussianPolicy
-    pi_prime: GaussianPolicy
-    value_fn: ValueNetwork
-    opt_bc: torch.optim.Optimizer
-    opt_ppo: torch.optim.Optimizer
-    pi_bc: GaussianPolicy | None = None
-    duals: list | None = None
-
-
-def make_learner(policy: GaussianPolicy, config: DCConfig, obs_dim: int) -> Learner:
-    """The two copies, the critic and their optimisers, from a (BC-initialised) policy."""
-    pi = policy
-    pi_prime = copy.deepcopy(policy)
-    value_fn = ValueNetwork(obs_dim, config.ppo.hidden, norm_obs=pi.obs_norm is not None)
-    if pi.obs_norm is not None:   # the critic sees the policy's (frozen) normalisation
-        value_fn.obs_norm.load_state_dict(pi.obs_norm.state_dict())
-    pi_bc = copy.deepcopy(policy) if config.update == "admm" else None
-    bc_target = pi_bc if pi_bc is not None else pi
-    opt_bc = _fast.adamw(bc_target.parameters(), lr=config.lr, eps=1e-5,
-                               weight_decay=config.weight_decay)
-    # Weight decay on the policy copy only, not on the critic.
-    opt_ppo = _fast.adamw([{"params": list(pi_prime.parameters()),
-                                  "weight_decay": config.weight_decay},
-                                 {"params": list(value_fn.parameters()), "weight_decay": 0.0}],
-                                lr=config.lr, eps=1e-5)
-    duals = None
-    if config.update == "admm":
-        n = flat(policy_parameters(pi)).numel()
-        duals = [torch.zeros(n), torch.zeros(n)]
-    return Learner(pi, pi_prime, value_fn, opt_bc, opt_ppo, pi_bc, duals)
-
-
-def sample_bc_pairs(expert_obs: torch.Tensor, expert_act: torch.Tensor, batch, config: DCConfig,
-                    generator: torch.Generator):
-    """One BC minibatch: ``bc_batch_size`` expert pairs and (with ``bc_learner_pairs``) as many
-    pairs of the learner batch, drawn uniformly with ``generator``."""
-    i = torch.randint(len(expert_obs), (config.bc_batch_size,), generator=generator)
-    obs, act = expert_obs[i], expert_act[i]
-    if config.bc_learner_pairs:
-        lo = batch.obs.reshape(-1, batch.obs.shape[-1])
-        la = batch.actions.reshape(-1, batch.actions.shape[-1])
-        j = torch.randint(len(lo), (config.bc_batch_size,), generator=generator)
-        obs, act = torch.cat([obs, lo[j]]), torch.cat([act, la[j]])
-    return obs, act
-
-
-def _reset_moments(opt: torch.optim.Optimizer) -> None:
-    opt.state.clear()
-
-
-def _proximal(policy: GaussianPolicy, target: torch.Tensor, rho: float):
-    """rho/2 ||x - target||^2 over the policy's averaged parameters, as a closure."""
-    def term():
-        x = torch.cat([p.reshape(-1) for p in policy_parameters(policy)])
-        return 0.5 * rho * ((x - target) ** 2).sum()
-    return term
-
-
-def admm_iteration(learner: Learner, batch, rewards: torch.Tensor, expert_obs: torch.Tensor,
-                   expert_act: torch.Tensor, config: DCConfig,
-                   generator: torch.Generator) -> dict:
-    """One iteration of Algorithm 2 on a batch already sampled by ``learner.pi_prime`` (with
-    its ``rewards``): the BC step, the PPO step and the averaging (or the ADMM updates).
-
-    Returns the logged terms.  Under ``update="average"`` the caller has made pi' a copy of pi
-    before sampling (see :func:`train`).
-    """
-    L, c = learner, config
-    if c.optimizer_state == "reset":
-        _reset_moments(L.opt_bc)
-        _reset_moments(L.opt_ppo)
-    before = flat(policy_parameters(L.pi))
-    admm = c.update == "admm"
-    out: dict = {}
-
-    # -- the BC step (Eq. 4, first term) on pi (x_1 under ADMM)
-    bc_model = L.pi_bc if admm else L.pi
-    prox_bc = prox_ppo = None
-    if admm:
-        z = before
-        prox_bc = _proximal(L.pi_bc, z - L.duals[0], c.rho)
-        prox_ppo = _proximal(L.pi_prime, z - L.duals[1], c.rho)
-    bc_terms = []
-    if c.bc_step:
-        for _ in range(c.bc_steps):
-            obs, act = sample_bc_pairs(expert_obs, expert_act, batch, c, generator)
-            bc_terms.append(_bc.bc_step(bc_model, L.opt_bc, obs, act, c.max_grad_norm,
-                                        extra_loss=prox_bc))
-    out["bc_nll"] = float(np.mean([t["nll"] for t in bc_terms])) if bc_terms else math.nan
-
-    # -- the PPO step (Eq. 4, second term) on pi'
-    if c.ppo_step:
-        batch.advantages, batch.returns = compute_gae(rewards, batch.values, batch.next_values,
-                                                      batch.dones, c.ppo.gamma, c.ppo.gae_lambda,
-                                                      batch.terminals)
-        ppo_terms = ppo_update(L.pi_prime, L.value_fn, L.opt_ppo, batch, c.ppo_config(),
-                               generator, extra_loss=prox_ppo)
-        out.update({f"ppo_{k}": v for k, v in ppo_terms.items()})
-
-    x_bc = flat(policy_parameters(bc_model))
-    x_rl = flat(policy_parameters(L.pi_prime))
-    out["pi_pi_prime_l1"] = float((x_bc - x_rl).abs().sum())
-
-    # -- the consensus
-    if not admm:
-        # With one step switched off its copy is still the start, so the average halves the
-        # other step: what the paper's update does to each step on its own.
-        average_into(L.pi, L.pi_prime, c.average_log_std)
-    else:
-        with torch.no_grad():
-            u1, u2 = L.duals
-            z_new = 0.5 * ((x_bc + u1) + (x_rl + u2))
-            u1 += x_bc - z_new
-            u2 += x_rl - z_new
-            _set_flat(policy_parameters(L.pi), z_new)
-            out["primal_residual"] = float(torch.sqrt(((x_bc - z_new) ** 2).sum()
-                                                      + ((x_rl - z_new) ** 2).sum()))
-            out["dual_residual"] = float(c.rho * math.sqrt(2.0)
-                                         * torch.sqrt(((z_new - before) ** 2).sum()))
-    after = flat(policy_parameters(L.pi))
-    out["param_change_l1"] = float((after - before).abs().sum())
-    out["log_std"] = float(L.pi.log_std.detach().mean()) if L.pi.gaussian else math.nan
-    return out
-
-
-@torch.no_grad()
-def _set_flat(params, vector: torch.Tensor) -> None:
-    i = 0
-    for p in params:
-        n = p.numel()
-        p.copy_(vector[i:i + n].reshape(p.shape))
-        i += n
-
-
-# -- checkpoints ---------------------------------------------------------------------------------
-
-CHECKPOINT_FORMAT = "dc_lesson.dc.checkpoint"
-CHECKPOINT_VERSION = 1
-
-
-def _state(learner: Learner) -> dict:
-    out = {"pi": learner.pi.state_dict(), "pi_prime": learner.pi_prime.state_dict(),
-           "value": learner.value_fn.state_dict(), "opt_bc": learner.opt_bc.state_dict(),
-           "opt_ppo": learner.opt_ppo.state_dict()}
-    if learner.pi_bc is not None:
-        out["pi_bc"] = learner.pi_bc.state_dict()
-        out["duals"] = [u.clone() for u in learner.duals]
-    return out
-
-
-def _load_state(learner: Learner, state: dict) -> None:
-    learner.pi.load_state_dict(state["pi"])
-    learner.pi_prime.load_state_dict(state["pi_prime"])
-    learner.value_fn.load_state_dict(state["value"])
-    learner.opt_bc.load_state_dict(state["opt_bc"])
-    learner.opt_ppo.load_state_dict(state["opt_ppo"])
-    if learner.pi_bc is not None:
-        learner.pi_bc.load_state_dict(state["pi_bc"])
-        learner.duals = [u.clone() for u in state["duals"]]
-
-
 # -- Algorithm 1 ---------------------------------------------------------------------------------
 
 expert_pairs = _bc.pairs   # all (state, action) pairs of the demonstrations, as tensors
-
-
-def _subsample(x: torch.Tensor, n: int, generator: torch.Generator) -> torch.Tensor:
-    if len(x) <= n:
-        return x
-    return x[torch.randperm(len(x), generator=generator)[:n]]
 
 
 def train(task: str, demos: Demonstrations, config: DCConfig = DCConfig(), *,
@@ -545,6 +343,66 @@ def train(task: str, demos: Demonstrations, config: DCConfig = DCConfig(), *,
     that loop (0-based), as an interruption would.  ``callback(row, policy)`` after each
     iteration; a true value stops the run.
     """
+    run = _setup(task, demos, config, policy)
+    done = 0   # iterations of Algorithm 2 run so far, over all loops
+    if checkpoint is not None and pathlib.Path(checkpoint).exists():
+        done = _resume(run, checkpoint)
+    N = config.iterations
+    bar = _progress.bar(total=config.loops * N, initial=done, desc=f"DC {task}", unit="it",
+                        enabled=progress)
+    first_loop, first_it = divmod(done, N)
+    try:
+        for loop in range(first_loop, config.loops):
+            first = first_it if loop == first_loop else 0   # > 0: resumed mid-loop, P_w loaded
+            if first == 0 and run.disc is None:             # Stage 1, P_w (Alg. 1):
+                t0 = time.perf_counter()
+                if loop == 0:                               # lines 1-2: expert states only
+                    states = _subsample(run.expert_states, config.flow_states, run.generator)
+                    run.flow, flog = _softflow.fit(states, run.flow_config, progress=False)
+                else:                                       # lines 5-7: pi's states too
+                    states = _expert_and_learner_states(run)
+                    run.flow, flog = _softflow.fit_more(run.flow, states, run.flow_config,
+                                                        iterations=config.flow_refit_iterations,
+                                                        progress=False)
+                _rescale(run, loop, flog, t0)
+            for it in range(first, N):                      # Stage 2, lines 3 and 8
+                row = _iteration(run, loop, it)             # one iteration of Algorithm 2
+                bar.update(1)
+                bar.set_postfix(loop=loop, r=f"{row['reward_mean']:.2f}",
+                                dpi=f"{row['param_change_l1']:.2f}")
+                if callback is not None and callback(row, run.learner.pi):
+                    return _result(run)
+                if checkpoint is not None and ((it + 1) % checkpoint_every == 0 or it + 1 == N):
+                    _save(run, checkpoint, loop * N + it + 1)
+            if stop_after_loop is not None and loop >= stop_after_loop:
+                break
+    finally:
+        bar.close()
+    return _result(run)
+
+
+@dataclasses.dataclass
+class _Run:
+    """A run between two iterations: what a checkpoint holds, and the expert's data."""
+    task: str
+    config: DCConfig
+    learner: Learner
+    generator: torch.Generator   # actions, minibatches, pairs, subsamples, refit episodes
+    envs: EnvBatch
+    expert_obs: torch.Tensor     # the expert's pairs (BC)
+    expert_act: torch.Tensor
+    expert_states: torch.Tensor  # every expert state (P_w)
+    flow_config: _softflow.SoftFlowConfig
+    disc: _dc_disc.DiscriminatorReward | None   # reward="gail": in place of P_w
+    flow: _softflow.SoftFlow | None = None
+    scale: RewardScale | None = None
+    log: list = dataclasses.field(default_factory=list)
+    env_steps: int = 0
+
+
+def _setup(task, demos, config: DCConfig, policy) -> _Run:
+    """The warm start (fitted here if None), the seeds, the copies, the generator, the
+    environments and the expert's data."""
     spec = _tasks.spec(task)
     check_inputs(task, demos, policy)
     if policy is None:
@@ -560,92 +418,71 @@ def train(task: str, demos: Demonstrations, config: DCConfig = DCConfig(), *,
     envs = EnvBatch(task, config.n_envs, env_seed, None, config.ppo.terminate)
     expert_obs, expert_act = expert_pairs(demos)
     expert_states = torch.from_numpy(np.concatenate([t.observations for t in demos.trajectories]))
-    flow_config = dataclasses.replace(config.flow_config(), seed=flow_seed)
-
-    flow, scale, log = None, None, []
     disc = (_dc_disc.DiscriminatorReward(expert_states, spec.obs_dim, flow_seed)
             if config.reward == "gail" else None)
-    loop, it = 0, 0   # the next (loop, iteration) to run; it == 0: the loop's flow fit is next
-    if checkpoint is not None and pathlib.Path(checkpoint).exists():
-        loop, it, flow, scale, log = _load_checkpoint(checkpoint, task, config, learner,
-                                                      generator, envs, disc)
+    return _Run(task, config, learner, generator, envs, expert_obs, expert_act, expert_states,
+                dataclasses.replace(config.flow_config(), seed=flow_seed), disc)
 
-    total = config.loops * config.iterations
-    bar = _progress.bar(total=total, initial=loop * config.iterations + it, desc=f"DC {task}",
-                        unit="it", enabled=progress)
-    env_steps = log[-1]["env_steps"] if log else 0
-    stopped = False
-    try:
-        while loop < config.loops and not stopped:
-            if it == 0 and disc is None:   # Stage 1: fit (loop 0) or refit P_w
-                t0 = time.perf_counter()
-                if loop == 0:
-                    states = _subsample(expert_states, config.flow_states, generator)
-                    flow, flog = _softflow.fit(states, flow_config, progress=False)
-                else:
-                    learner_states = _learner_states(task, learner, config, generator)
-                    env_steps += learner_states.shape[0]
-                    n = min(config.flow_states, len(learner_states), len(expert_states))
-                    states = torch.cat([_subsample(expert_states, n, generator),
-                                        _subsample(learner_states, n, generator)])
-                    flow, flog = _softflow.fit_more(flow, states, flow_config,
-                                                    iterations=config.flow_refit_iterations,
-                                                    progress=False)
-                scale = RewardScale.from_expert(
-                    state_log_density(flow, _subsample(expert_states, 2000, generator)).numpy())
-                log.append({"kind": "flow", "loop": loop, "env_steps": env_steps,
-                            "flow_nll": float(np.mean([r["nll"] for r in flog[-20:]])),
-                            "flow_seconds": time.perf_counter() - t0,
-                            "reward_low": scale.low, "reward_high": scale.high})
-            while it < config.iterations:
-                start = time.perf_counter()
-                if config.update == "average":
-                    copy_into(learner.pi_prime, learner.pi)   # Alg. 2: copy pi to pi'
-                batch = collect_batch(envs, learner.pi_prime, learner.value_fn,
-                                      config.n_steps, generator)
-                disc_row = {}
-                if disc is None:
-                    logp = state_log_density(flow, batch.next_obs)
-                    rewards = logp if config.reward == "raw" else scale(logp)
-                else:
-                    rewards, disc_row = disc(batch.next_obs, generator)
-                    logp = torch.full_like(rewards, math.nan)
-                row = admm_iteration(learner, batch, rewards, expert_obs, expert_act, config,
-                                     generator)
-                row.update(disc_row)
-                env_steps += config.batch_size
-                it += 1
-                row = {"kind": "iteration", "loop": loop, "iteration": it,
-                       "env_steps": env_steps, "reward_mean": float(rewards.mean()),
-                       "log_p_mean": float(logp.mean()),
-                       "episode_return": (float(np.mean(batch.episode_returns))
-                                          if batch.episode_returns else math.nan),
-                       **row, "steps_per_second": config.batch_size
-                       / (time.perf_counter() - start)}
-                log.append(row)
-                bar.update(1)
-                bar.set_postfix(loop=loop, r=f"{row['reward_mean']:.2f}",
-                                dpi=f"{row['param_change_l1']:.2f}")
-                if callback is not None and callback(row, learner.pi):
-                    stopped = True
-                    break
-                if checkpoint is not None and it % checkpoint_every == 0 \
-                        and it < config.iterations:
-                    _save_checkpoint(checkpoint, task, config, loop, it, learner, flow, scale,
-                                     generator, envs, log, disc)
-            if stopped:
-                break
-            loop, it = loop + 1, 0
-            if checkpoint is not None:
-                _save_checkpoint(checkpoint, task, config, loop, it, learner, flow, scale,
-                                 generator, envs, log, disc)
-            if stop_after_loop is not None and loop > stop_after_loop:
-                break
-    finally:
-        bar.close()
-    learner.pi.meta = {**getattr(learner.pi, "meta", {}), "algorithm": "dc",
-                       "dc_config": json.loads(config.to_json())}
-    return TrainResult(learner.pi, log, {"flow": flow, "value": learner.value_fn}, "dc")
+
+def _expert_and_learner_states(run: _Run) -> torch.Tensor:
+    """Alg. 1, lines 5-6: ``n_envs`` fresh episodes of pi, then as many of their states as of
+    the expert's (at most ``flow_states`` each), for P_w's refit."""
+    visited = _learner_states(run.task, run.learner, run.config, run.generator)
+    run.env_steps += visited.shape[0]
+    n = min(run.config.flow_states, len(visited), len(run.expert_states))
+    return torch.cat([_subsample(run.expert_states, n, run.generator),
+                      _subsample(visited, n, run.generator)])
+
+
+def _rescale(run: _Run, loop: int, flog: list, t0: float) -> None:
+    """The reward's scale from log P_w of expert states, after a fit; logs the loop's flow row
+    (``t0``: when the stage began)."""
+    expert = _subsample(run.expert_states, 2000, run.generator)
+    run.scale = RewardScale.from_expert(state_log_density(run.flow, expert).numpy())
+    run.log.append({"kind": "flow", "loop": loop, "env_steps": run.env_steps,
+                    "flow_nll": float(np.mean([r["nll"] for r in flog[-20:]])),
+                    "flow_seconds": time.perf_counter() - t0,
+                    "reward_low": run.scale.low, "reward_high": run.scale.high})
+
+
+def _iteration(run: _Run, loop: int, it: int) -> dict:
+    """Stage 2, one iteration of Algorithm 2: pi' samples a batch, its next states are scored,
+    and the paper's averaging or consensus ADMM updates the copies.  Returns the log row."""
+    c, L = run.config, run.learner
+    start = time.perf_counter()
+    if c.update == "average":
+        copy_into(L.pi_prime, L.pi)                                   # Alg. 2, line 3
+    batch = collect_batch(run.envs, L.pi_prime, L.value_fn, c.n_steps, run.generator)  # line 4
+    if run.disc is None:
+        logp = state_log_density(run.flow, batch.next_obs)
+        rewards, disc_terms = (logp if c.reward == "raw" else run.scale(logp)), {}
+    else:
+        rewards, disc_terms = run.disc(batch.next_obs, run.generator)
+        logp = torch.full_like(rewards, math.nan)
+    update = parameter_averaging if c.update == "average" else consensus_admm   # lines 5-8
+    terms = update(L, batch, rewards, run.expert_obs, run.expert_act, c, run.generator)
+    run.env_steps += c.batch_size
+    row = {"kind": "iteration", "loop": loop, "iteration": it + 1, "env_steps": run.env_steps,
+           "reward_mean": float(rewards.mean()), "log_p_mean": float(logp.mean()),
+           "episode_return": (float(np.mean(batch.episode_returns))
+                              if batch.episode_returns else math.nan),
+           **terms, **disc_terms,
+           "steps_per_second": c.batch_size / (time.perf_counter() - start)}
+    run.log.append(row)
+    return row
+
+
+def _result(run: _Run) -> TrainResult:
+    pi = run.learner.pi
+    pi.meta = {**getattr(pi, "meta", {}), "algorithm": "dc",
+               "dc_config": json.loads(run.config.to_json())}
+    return TrainResult(pi, run.log, {"flow": run.flow, "value": run.learner.value_fn}, "dc")
+
+
+def _subsample(x: torch.Tensor, n: int, generator: torch.Generator) -> torch.Tensor:
+    if len(x) <= n:
+        return x
+    return x[torch.randperm(len(x), generator=generator)[:n]]
 
 
 @_timing.timed("refit_rollout")
@@ -661,44 +498,59 @@ def _learner_states(task: str, learner: Learner, config: DCConfig,
     return torch.from_numpy(np.concatenate([t.observations[1:] for t in trajs]))
 
 
-def _save_checkpoint(path, task, config, loop, it, learner, flow, scale, generator, envs, log,
-                     disc=None):
-    no_flow = flow is None   # reward="gail": a discriminator instead
-    atomic_torch_save({
-        "format": CHECKPOINT_FORMAT, "version": CHECKPOINT_VERSION, "task": task,
-        "config": config.to_json(), "loop": loop, "iteration": it,
-        "learner": _state(learner),
-        "policy_args": json.dumps(learner.pi.config()),
-        "flow_args": "null" if no_flow else json.dumps(flow.config()),
-        "flow": {} if no_flow else flow.state_dict(),
-        "flow_train_config": "null" if no_flow else flow.train_config.to_json(),
-        "scale": [] if no_flow else [scale.low, scale.high],
-        "disc": {} if disc is None else disc.state_dict(), "generator": generator.get_state(),
-        "envs": envs.state_dict(), "log": json.dumps(log)}, path)
+# -- checkpoints (base.save_run) -----------------------------------------------------------------
+
+CHECKPOINT_FORMAT = "dc_lesson.dc.checkpoint"
+# Version 1 was DC's own layout (before issue 37); load_checked refuses it with the fix.
+CHECKPOINT_VERSION = 2
 
 
-def _load_checkpoint(path, task, config, learner, generator, envs, disc=None):
-    ckpt = load_checked(path, CHECKPOINT_FORMAT, CHECKPOINT_VERSION, "DC checkpoint",
-                        checkpoint_fix(path))
-    check_checkpoint(path, ckpt, task, json.loads(ckpt["config"]),
-                     json.loads(config.to_json()), what="DC checkpoint")
-    if json.loads(ckpt["policy_args"]) != learner.pi.config():
-        raise PolicyFileError(f"DC checkpoint {path} holds a policy built as "
-                              f"{ckpt['policy_args']}, not {json.dumps(learner.pi.config())}")
-    _load_state(learner, ckpt["learner"])
-    generator.set_state(ckpt["generator"])
-    envs.load_state_dict(ckpt["envs"])
-    flow = scale = None
-    if disc is not None:
-        disc.load_state_dict(ckpt["disc"])
-    elif json.loads(ckpt["flow_args"]) is not None:   # None: saved before loop 0's fit
-        flow = _softflow.SoftFlow(**json.loads(ckpt["flow_args"]))
-        flow.load_state_dict(ckpt["flow"])
-        flow.train_config = _softflow.SoftFlowConfig.from_json(ckpt["flow_train_config"])
-        scale = RewardScale(*ckpt["scale"])
-    return int(ckpt["loop"]), int(ckpt["iteration"]), flow, scale, json.loads(ckpt["log"])
+def _parts(run: _Run) -> tuple[dict, dict]:
+    """The networks and optimisers a checkpoint holds, by name (not the flow, which a resumed
+    run builds from the file)."""
+    L = run.learner
+    networks = {"pi": L.pi, "pi_prime": L.pi_prime, "value": L.value_fn}
+    optimizers = {"opt_bc": L.opt_bc, "opt_ppo": L.opt_ppo}
+    if L.pi_bc is not None:
+        networks["pi_bc"] = L.pi_bc
+    if run.disc is not None:
+        networks["disc"], optimizers["opt_disc"] = run.disc.disc, run.disc.optimizer
+    return networks, optimizers
 
 
-__all__ = ["DCConfig", "DC_DEFAULTS", "STORED_NUMERICS", "preset", "Learner", "RewardScale", "admm_iteration", "average_into", "copy_into",
-           "expert_pairs", "flat", "make_learner", "policy_parameters", "sample_bc_pairs",
-           "state_log_density", "train"]
+def _save(run: _Run, path, done: int) -> None:
+    networks, optimizers = _parts(run)
+    flow = {}
+    if run.flow is not None:
+        networks["flow"] = run.flow
+        flow = {"flow_train_config": run.flow.train_config.to_json(),
+                "scale": [run.scale.low, run.scale.high]}
+    save_run(path, CHECKPOINT_FORMAT, CHECKPOINT_VERSION, task=run.task,
+             config_json=run.config.to_json(), update=done, networks=networks,
+             optimizers=optimizers, generators={"generator": run.generator}, envs=run.envs,
+             log=run.log, duals=run.learner.duals or [], **flow)
+
+
+def _resume(run: _Run, path) -> int:
+    """Restores ``run`` from ``path``; returns the iterations done."""
+    networks, optimizers = _parts(run)
+    done, run.log, ckpt = load_run(
+        path, CHECKPOINT_FORMAT, CHECKPOINT_VERSION, "DC checkpoint", task=run.task,
+        saved_config=lambda c: json.loads(c["config"]),
+        now_config=json.loads(run.config.to_json()), networks=networks,
+        optimizers=optimizers, generators={"generator": run.generator}, envs=run.envs)
+    if run.learner.duals is not None:
+        run.learner.duals = [u.clone() for u in ckpt["duals"]]
+    if run.disc is None:
+        run.flow = _softflow.SoftFlow(**json.loads(ckpt["flow_args"]))
+        run.flow.load_state_dict(ckpt["flow"])
+        run.flow.train_config = _softflow.SoftFlowConfig.from_json(ckpt["flow_train_config"])
+        run.scale = RewardScale(*ckpt["scale"])
+    run.env_steps = run.log[-1]["env_steps"] if run.log else 0
+    return done
+
+
+__all__ = ["CHECKPOINT_FORMAT", "CHECKPOINT_VERSION", "DCConfig", "DC_DEFAULTS", "Learner",
+           "RewardScale", "STORED_NUMERICS", "average_into", "consensus_admm", "copy_into",
+           "expert_pairs", "flat", "make_learner", "parameter_averaging", "policy_parameters",
+           "preset", "sample_bc_pairs", "state_log_density", "train"]
