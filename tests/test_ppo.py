@@ -461,3 +461,30 @@ def test_a_zero_entropy_weight_left_out_of_the_loss_changes_no_gradient_bit():
             assert (a is None) == (b is None)
             if a is not None:
                 assert torch.equal(a, b) and torch.equal(torch.signbit(a), torch.signbit(b))
+
+
+def test_a_critic_warm_up_holds_the_policy_and_trains_the_critic():
+    import copy
+    import dataclasses
+    from dc_lesson.algorithms import base, dc, dril
+    from dc_lesson.nn.policies import GaussianPolicy
+    cfg = ppo.PPOConfig(n_envs=2, n_steps=64, n_epochs=2, n_minibatches=4, total_steps=512,
+                        value_warmup=2, seed=1)
+    start = GaussianPolicy(5, 1, (16,), norm_obs=True)
+    seen = []
+    r = ppo.train("cartpole", config=cfg, policy=copy.deepcopy(start), progress=False,
+                  callback=lambda row, pi: seen.append(copy.deepcopy(pi.state_dict())))
+    for k, v in start.state_dict().items():          # held still for two updates ...
+        assert torch.equal(seen[1][k], v), k
+    assert any(not torch.equal(seen[2][k], v) for k, v in start.state_dict().items())  # ... then
+    assert [row["policy_frozen"] for row in r.log] == [True, True, False, False]
+    assert r.log[0]["value_loss"] > 0                # the critic trained meanwhile
+    # unset, it is not in the JSON, so stored runs and cells keep their identity
+    assert "value_warmup" not in dataclasses.replace(cfg, value_warmup=None).to_json()
+    with pytest.raises(ValueError, match="value_warmup"):
+        dataclasses.replace(cfg, value_warmup=4)     # leaves no update to the policy
+    with pytest.raises(ValueError, match="ppo.value_warmup"):   # other loops refuse it
+        dril.DRILConfig(ppo=dataclasses.replace(dril.DRILConfig().ppo, value_warmup=1))
+    with pytest.raises(ValueError, match="ppo.value_warmup"):
+        dc.DCConfig(ppo=dataclasses.replace(dc.DCConfig().ppo, value_warmup=1))
+    assert base.unset_dropped({"value_warmup": None, "x": 1}) == {"x": 1}

@@ -66,6 +66,9 @@ class PPOImitationConfig:
         name = type(self).__name__
         if not isinstance(self.ppo, _ppo.PPOConfig):
             raise TypeError(f"{name}.ppo must be a ppo.PPOConfig, got {type(self.ppo)}")
+        if self.ppo.value_warmup is not None:
+            raise ValueError(f"{name}.ppo.value_warmup is PPO's own loop's; set "
+                             f"{name}.value_warmup (critic-only iterations) instead")
         if not 0 <= self.value_warmup < self.ppo.n_updates:
             raise ValueError(f"{name}.value_warmup = {self.value_warmup} must be >= 0 and leave "
                              f"some of the {self.ppo.n_updates} iterations to the policy")

@@ -64,7 +64,7 @@ def set_start_noise(policy, log_std: float | None) -> None:
         policy.log_std.fill_(float(log_std))
 
 
-def unset_dropped(d: dict, names=("start_log_std",)) -> dict:
+def unset_dropped(d: dict, names=("start_log_std", "value_warmup")) -> dict:
     """``d`` without the fields in ``names`` whose value is None: a knob added after a study's
     cells were listed names them only when set, so the stored cells keep their identity."""
     return {k: v for k, v in d.items() if not (k in names and v is None)}

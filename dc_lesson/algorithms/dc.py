@@ -216,6 +216,9 @@ class DCConfig:
                      non_negative=("flow_refit_iterations", "weight_decay", "seed"))
         if not isinstance(self.ppo, PPOConfig):
             raise TypeError(f"DCConfig.ppo must be a ppo.PPOConfig, got {type(self.ppo)}")
+        if self.ppo.value_warmup is not None:   # never read by DC's loop: refuse, not ignore
+            raise ValueError("DCConfig.ppo.value_warmup is PPO's own loop's; DC's critic "
+                             "trains with its PPO step from the first iteration")
         for name, allowed in (("update", UPDATES), ("reward", REWARDS),
                               ("optimizer_state", OPTIMIZER_STATES)):
             if getattr(self, name) not in allowed:

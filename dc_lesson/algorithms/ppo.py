@@ -104,6 +104,12 @@ class PPOConfig:
     #                                   the rest of a 1000-step episode lying still.
     terminate: str | None = None  # training-only termination: a key of TERMINATIONS (None:
     #                               episodes run to the time limit, as the tasks do)
+    value_warmup: int | None = None  # first updates that train only the critic (the policy's
+    #                               learning rate 0): a fresh critic beside a given start
+    #                               otherwise hands the actor advantages that are its own
+    #                               error. None: none (one optimiser group, as the stored
+    #                               experts were trained). PPO's own loop only: the imitation
+    #                               learners have their own value_warmup
     seed: int = 0                # the one seed of the run
 
     def __post_init__(self):
@@ -118,6 +124,12 @@ class PPOConfig:
         if self.n_updates < 1:
             raise ValueError(f"total_steps = {self.total_steps} is less than one batch "
                              f"({self.batch_size} steps)")
+        if self.value_warmup is not None and not (
+                isinstance(self.value_warmup, int) and not isinstance(self.value_warmup, bool)
+                and 0 <= self.value_warmup < self.n_updates):
+            raise ValueError(f"PPOConfig.value_warmup = {self.value_warmup!r} must be a whole "
+                             f"number from 0 that leaves some of the {self.n_updates} updates "
+                             f"to the policy (or None)")
 
     @property
     def batch_size(self) -> int:
@@ -602,8 +614,13 @@ def train(task: str, demos=None, config: PPOConfig = PPOConfig(), *,
         value_fn = ValueNetwork(spec.obs_dim, config.hidden, norm_obs=config.norm_obs)
     if frozen_norm and value_fn.obs_norm is not None:
         value_fn.obs_norm.load_state_dict(policy.obs_norm.state_dict())
-    optimizer = _fast.adamw([*policy.parameters(), *value_fn.parameters()],
-                                  lr=config.lr, eps=1e-5, weight_decay=config.weight_decay)
+    # With a critic warm-up, two groups so it can hold the policy still (the same numbers per
+    # parameter; one group otherwise, as the stored experts' optimiser state has it)
+    params = ([{"params": list(policy.parameters())}, {"params": list(value_fn.parameters())}]
+              if config.value_warmup is not None else
+              [*policy.parameters(), *value_fn.parameters()])
+    optimizer = _fast.adamw(params, lr=config.lr, eps=1e-5, weight_decay=config.weight_decay)
+    warmup = config.value_warmup or 0
     generator = torch.Generator().manual_seed(sample_seed)
     envs = EnvBatch(task, config.n_envs, env_seed, config.episode_steps, config.terminate)
     first, log = 0, []
@@ -617,8 +634,11 @@ def train(task: str, demos=None, config: PPOConfig = PPOConfig(), *,
     last_return = math.nan
     for update in range(first, config.n_updates):
         start = time.perf_counter()
-        if config.anneal_lr:
-            optimizer.param_groups[0]["lr"] = config.lr * (1 - update / config.n_updates)
+        lr = config.lr * (1 - update / config.n_updates) if config.anneal_lr else config.lr
+        for group in optimizer.param_groups:
+            group["lr"] = lr
+        if update < warmup:
+            optimizer.param_groups[0]["lr"] = 0.0      # the policy's group: held still
 
         batch = collect_batch(envs, policy, value_fn, config.n_steps, generator)
         if reward_fn is None:
@@ -641,7 +661,7 @@ def train(task: str, demos=None, config: PPOConfig = PPOConfig(), *,
         if batch.episode_returns:
             last_return = float(np.mean(batch.episode_returns))
         row = {"update": update + 1, "steps": (update + 1) * config.batch_size,
-               "lr": optimizer.param_groups[0]["lr"], **terms,
+               "lr": lr, **({"policy_frozen": update < warmup} if warmup else {}), **terms,
                "reward_mean": float(rewards.mean()),
                "episode_return": (float(np.mean(batch.episode_returns))
                                   if batch.episode_returns else math.nan),
