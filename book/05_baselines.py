@@ -401,6 +401,87 @@ if t1 is not None:
                 .reindex([r for r in LEARNER_ROWS if r in set(sweep_cost["row"])]))
 
 # %% [markdown]
+# ## Before they judge: the competence gate
+#
+# A comparison of DC with a baseline says something about DC only if the baseline is a
+# competent implementation of its algorithm, not ours failing. So every RL learner of the
+# book (PPO on the task's own reward as the RL base, then GAIL, DRIL, PWIL, NDI, GPRIL and DC)
+# answers two questions in a stored study before any verdict uses it
+# (`dc-lesson sweep competence`, module `dc_lesson.experiments.studies.competence`):
+#
+# * **does it keep a perfect start?** From BC on 4 demonstrations of cartpole and hopper,
+#   where BC is already at the expert's level, it trains for the benchmark's interactions.
+#   It keeps the start when its final mean-action scaled return is within a tolerance of the
+#   start on nearly every seed and no checkpoint on the way falls far below it;
+# * **does it learn?** From a weak start (BC stopped after one epoch) on hopper and
+#   halfcheetah, its mean final scaled return over the seeds must reach a floor.
+#
+# The thresholds were declared before any cell ran (printed below, from the study), and so
+# were the rules every learner runs with: the start's exploration noise and, on hopper, the
+# fall that ends a training episode, which its expert trained with. Where a probe showed a
+# learner needed more, the setting is a named field of its config, printed below with the
+# study's other rules (the study's module lists what each probe measured). A learner
+# that fails is kept in the tables, marked, and every verdict that would use it as a
+# comparator says "not judged: failed the competence gate". The gate reads the cells on
+# record, so while the study accumulates a part that has not run says so rather than
+# passing.
+
+# %%
+from dc_lesson.experiments import competence as competence_report
+from dc_lesson.experiments.studies import competence as competence_study
+
+print(f"keeps: final within {competence_study.KEEP_TOLERANCE} of the start on at least "
+      f"{competence_study.KEEP_SHARE:.0%} of the seeds, no checkpoint more than "
+      f"{competence_study.MAX_DIP} below it; learns: mean final at least "
+      f"{competence_study.LEARN_FLOOR} from a start below {competence_study.WEAK_CEILING}")
+print("every learner: start log-std", algorithms.base.START_LOG_STD, "and, on hopper, the fall "
+      "ends a training episode; its own settings on top:")
+for name, fixes in competence_study.FIXES.items():
+    print(f"  {competence_report.NAMES[name]}: "
+          + ", ".join(f"{k} = {v}" for k, v in fixes.items()))
+gate_record = competence_report.load()
+if gate_record is None:
+    print("competence.json has not been made on this checkout: dc-lesson sweep competence, "
+          "then dc-lesson aggregate competence --partial")
+else:
+    print(competence_report.status(gate_record))
+    display(pd.DataFrame(competence_report.overview(gate_record)).T)   # (seeds on record)
+    gate_rows = pd.DataFrame([r for r in competence_report.rows(gate_record) if r["seeds"]])
+    display(gate_rows.round(2).set_index(["learner", "part", "task"]))
+    display(Markdown(competence_report.sentence(gate_record)))
+
+# %% [markdown]
+# Each learner's mean-action checkpoint curve, the mean over the seeds on record with its 95%
+# t interval (the shaded band), beside the start's level (dashed). Where a learner keeps its
+# start the curve lies on the dashed line; a dip is the fall the gate's second rule counts.
+
+# %%
+if gate_record is not None:
+    panels = [(p, t) for p, ts in (("keep", competence_study.KEEP_TASKS),
+                                   ("learn", competence_study.LEARN_TASKS)) for t in ts]
+    fig, axes = plt.subplots(1, len(panels), figsize=(11, 3.2), sharey=True)
+    for ax, (part, task) in zip(axes, panels):
+        drawn = competence_report.curves(gate_record, part, task)
+        for name, c in drawn.items():
+            steps = np.array(c["steps"]) / 1e6
+            line, = ax.plot(steps, c["mean"], label=f"{name} ({c['seeds']})")
+            ax.fill_between(steps, c["lo"], c["hi"], color=line.get_color(), alpha=0.15)
+        if drawn:
+            ax.axhline(np.mean([c["start"] for c in drawn.values()]), color="grey", ls="--",
+                       lw=1)
+        else:
+            ax.text(0.5, 0.5, "not run yet", ha="center", va="center", transform=ax.transAxes)
+        ax.set_title(f"{part}: {task}", fontsize=10)
+        ax.set_xlabel("interactions (millions)")
+    axes[0].set_ylabel("scaled return (mean action)")
+    drawn_axes = [ax for ax in axes if ax.get_legend_handles_labels()[0]]
+    if drawn_axes:     # one legend, on the first panel with curves
+        drawn_axes[0].legend(fontsize=7, loc="lower right", title="learner (seeds)",
+                             title_fontsize=7)
+    fig.tight_layout()
+    plt.show()
+
+# %% [markdown]
 # ## Their rows of Table I
 #
 # The four run in chapter 4's Table I study (`dc-lesson sweep table1`: the realizable

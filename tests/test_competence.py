@@ -205,8 +205,8 @@ def _record(obs):
         o.setdefault("seed", i)
         o.setdefault("curve_steps", [1000 * (k + 1) for k in range(len(o["curve"]))])
     return {"observations": obs, "steps": {"keep": 1000, "learn": 2000},
-            "cells": {"n": len(obs), "of": 99, "wall_seconds": 3600.0}, "budget": "lesson",
-            "complete": False}
+            "cells": {"n": len(obs), "of": 99, "wall_seconds": 3600.0}, "budget": "smoke",
+            "complete": False, "benchmark": "competence"}
 
 
 def test_the_chapter_table_words_each_part_from_the_seeds_on_record():

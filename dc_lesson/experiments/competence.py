@@ -31,9 +31,11 @@ def status(rec: dict) -> str:
     c = rec["cells"]
     done = "complete" if rec.get("complete", True) else "still accumulating"
     steps = rec["steps"]
+    from dc_lesson.experiments import aggregate
+    stale = aggregate.freshness(rec)   # today's settings may have given new cells
     return (f"{c['n']} of {c.get('of', c['n'])} cells ({done}), budget {rec['budget']}, "
             f"{steps['keep']:,} interactions to keep a start, {steps['learn']:,} to learn; "
-            f"{c['wall_seconds'] / 3600:.1f} CPU-hours of cells")
+            f"{c['wall_seconds'] / 3600:.1f} CPU-hours of cells" + (f"\n{stale}" if stale else ""))
 
 
 def _runs(rec: dict, learner: str, part: str, task: str) -> list[dict]:
