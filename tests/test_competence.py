@@ -92,6 +92,11 @@ def test_the_grid_has_every_learner_on_every_part_and_seed(name):
 # DRIL, DC 0 0 0; PWIL 0.004 0 0; PPO 0 0 0.31; NDI 0 0.69 0; GPRIL 0.83 0.78 0.89. Those
 # still failing are strict expected failures (a fix turns them into errors to remove the
 # mark, as it should).
+# GPRIL with the study's predecessor weight (0.1) still drops 0.68-0.89 here (5 December): at
+# smoke it makes 3 AdamW steps at lr 1e-3 on a converged BC loss, whose normalised steps move
+# every weight by about the learning rate in the direction of the gradient's noise, with no
+# iteration left to recover; at lesson (400,000 interactions, seeds 0-1) it kept 1.00 at every
+# checkpoint. The test stays a strict expected failure of the smoke proxy, not of the learner.
 FAILS_TODAY = {"ppo", "ndi", "gpril"}
 SEEDS = 3
 
@@ -253,7 +258,8 @@ def test_each_learner_s_own_fixes_reach_its_config_and_its_cells():
             for part in name.split("."):
                 got = getattr(got, part)
             assert got == value, (learner, name)
-        assert cfg.start_log_std == -2 and cfg.ppo.terminate == "hopper-fall"   # rules kept
+        assert cfg.start_log_std == -2     # the shared rules kept
+        assert getattr(cfg, "ppo", cfg).terminate == "hopper-fall"
         cell = next(c for c in studies.get("competence").grid(b) if c.learner == learner)
         text = json.dumps(cell.config, sort_keys=True)
         assert all(json.dumps(k.split(".")[-1]) in text for k in fixes)   # part of its identity
