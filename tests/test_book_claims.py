@@ -68,5 +68,7 @@ def test_chapter03_softflow_speed_claims_hold_in_the_stored_benchmark():
     assert same_solver["mean_abs_diff"] < 1e-5   # "the solver's tolerance"
     for row in record["train"].values():
         assert abs(row["ours"]["steps_per_s"] / row["naive vjp"]["steps_per_s"] - row["ratio"]) < 1e-9
-    # the summary's "about 6 times faster ... at the same accuracy"
-    assert 5.5 < default["speedup"] < 6.5 and default["mean_abs_diff"] < 1e-3
+    # the summary's "several times faster ... at the same accuracy" (the section renders the
+    # ratio itself; the summary's word asks for at least three times and a difference far
+    # below a nat), not a rounded copy of the stored ratio
+    assert default["speedup"] >= 3 and default["mean_abs_diff"] < 1e-3

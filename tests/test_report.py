@@ -55,3 +55,32 @@ def test_favourites_say_agreement_or_count_each_mode_most_first():
         "the favourite differs between seeds: red (2), blue (1), green (1)"
     with pytest.raises(ValueError):
         report.favourites([])
+
+
+def test_an_interval_of_a_bounded_measure_is_printed_inside_its_limits():
+    """A t interval is symmetric about the mean, so a mode TV near 1 can reach past 1: the
+    printed interval is clipped to the measure's limits, the rule's interval is not."""
+    from dc_lesson.experiments import verdicts
+    tv = [0.97, 0.99, 1.0, 1.0, 1.0]
+    m, lo, hi = report.t_interval(tv)
+    assert hi > 1.0                                              # what the rule computes
+    assert report.fmt_entry({"mode_tv_values": tv}, "mode_tv") == f"{m:.2f} [{lo:.2f}, 1.00]"
+    assert report.fmt(0.01, -0.02, 0.04, 2, report.bounds("largest_share")) == \
+        "0.01 [0.00, 0.04]"
+    assert report.fmt_entry({"emd_values": [0.001, 0.0, 0.002, 0.0, 0.03]}, "emd", 3) \
+        .endswith("[0.000, 0.023]")                               # an EMD is never negative
+    # a difference of two shares lies in [-1, 1]: clipped there, not at 0
+    d = [-0.97, -0.99, -1.0, -1.0, -1.0]
+    assert report.fmt_entry({"a": "dc", "b": "bc", "mode_tv_diffs": d}, "mode_tv") \
+        .startswith("-0.99 [-1.00, ")
+    assert report.bounds("mode_tv", difference=True) == (-1.0, 1.0)
+    # unbounded measures are printed as computed
+    r = [1.1, 0.9, 1.3, 1.2, 0.8]
+    t = verdicts.paired_t(r)
+    assert report.fmt_entry({"scaled_return_values": r}, "scaled_return", 3) == \
+        f"{t.mean:.3f} [{t.lo:.3f}, {t.hi:.3f}]" and t.hi > 1
+    assert report.bounds("scaled_return") is None and report.bounds("kl") is None
+    # the word is decided on the unclipped interval: clipping changes no verdict
+    assert verdicts.word_of_diffs(d, "mode_tv", -1) == verdicts.REPRODUCED
+    assert report.clip(-0.2, 0.5, (0.0, 1.0)) == (0.0, 0.5) and \
+        report.clip(0.2, 0.5, None) == (0.2, 0.5)

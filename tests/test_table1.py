@@ -250,8 +250,8 @@ def test_a_cached_start_is_the_policy_a_fresh_warm_start_gives():
 
 
 def test_the_summary_words_come_from_the_rule_on_the_aggregate(monkeypatch):
-    """A constructed grid where DC lowers the EMD of its start on every seed gives 'lower';
-    the same grid with DC equal to its start gives 'no difference detected'."""
+    """A constructed grid where DC lowers the EMD of its start on every seed gives
+    'reproduced'; the same grid with DC equal to its start gives 'equal within' the bound."""
     def recs(delta):
         rng = np.random.default_rng(0)
         out = []
@@ -373,7 +373,8 @@ def test_a_table3_cell_gives_the_same_numbers_with_its_start_cached_or_fresh():
 def test_against_start_counts_collapses_and_falls_per_seed_and_words_the_pair(monkeypatch):
     """A constructed coin grid: GAIL sends every episode of seeds 0-6 to red (its start
     splits red/blue) and ends below its start in those seeds; the line counts 7 collapsed
-    seeds against the start's 0, 7 of 10 below the start, and words the paired EMD 'higher'."""
+    seeds against the start's 0, 7 of 10 below the start, and words the paired EMD by the
+    rule ('inconclusive': its 0.035 rise is under the smallest effect)."""
     def recs():
         rng = np.random.default_rng(0)
         out = []
@@ -463,11 +464,12 @@ def test_the_aggregate_pairs_the_mode_tv_per_seed(monkeypatch):
 
 def _modes_rec(tv, diff, n_seeds=10):
     """A table1 aggregate for the mode answer: ``tv[(task, row)]`` a row's mean mode TV (its
-    interval +-0.03), ``diff[(row, task)]`` the paired mode-TV difference ``dc - row``."""
+    per-seed values spread evenly over +-0.03 about it), ``diff[(row, task)]`` the paired
+    mode-TV difference ``dc - row``."""
     from dc_lesson.evaluation import stats
     rng = np.random.default_rng(1)
-    modes = [{"task": t, "row": r, "tv_ci": {"mean": v, "lo": v - 0.03, "hi": v + 0.03}}
-             for (t, r), v in tv.items()]
+    modes = [{"task": t, "row": r, "tv": (v + np.linspace(-0.03, 0.03, n_seeds)).tolist(),
+              "tv_ci": {"mean": v, "lo": v - 0.03, "hi": v + 0.03}} for (t, r), v in tv.items()]
     pairs = []
     for (row, task), d in diff.items():
         x = rng.normal(0.5, 0.1, n_seeds)
@@ -495,35 +497,72 @@ def test_the_mode_answer_judges_dc_against_the_better_trained_bc_and_the_floor()
         ("bc-lib", "contradicted"), ("bc-lib", "contradicted"), ("bc-full", "reproduced")]
     assert all(a["bc"][t][1] == "reproduced" for t in tasks)      # lower TV is better
     assert a["gail"]["reacher2"][1] == "not judged: not run yet"
+    # the floor is the same claim, unpaired (Welch): DC 0.2 above the expert's own on the
+    # reachers is contradicted; 0.02 above it on halfcheetah2 is equal within 0.05
     fl = tm.floor(rec)
-    assert fl["reacher2"][0] == "above the expert's"
-    assert fl["halfcheetah2"][0] == "not distinguished from the expert's"
+    assert fl["reacher2"][0] == "contradicted"
+    assert fl["halfcheetah2"][0] == "equal within 0.05"
     c = tm.conclusion(rec)
-    assert "more modes than the better-trained BC on 1 of 3 tasks: halfcheetah2 only" in c
-    assert "than the expert's own does (2 of 3 tasks: reacher2, reacher4)" in c
+    assert "is reproduced against the better-trained BC on 1 of 3 tasks (halfcheetah2) only" in c
+    assert ("Against the expert scored like a learner (unpaired): contradicted on 2 "
+            "(reacher2, reacher4); equal within 0.05 on 1 (halfcheetah2)") in c
     lines = tm.lines(rec)
     assert "reproduced on 1 (halfcheetah2); contradicted on 2 (reacher2, reacher4)" in lines[1]
+    assert "reacher2 *contradicted* (DC 0.30 [" in lines[-1] and "unpaired, Welch" in lines[-1]
+    for m in rec["mean"]["modes"]:            # no per-seed values: no word
+        if (m["task"], m["row"]) == ("reacher2", "dc"):
+            del m["tv"]
+    assert tm.floor(rec)["reacher2"][0] == "not judged: no per-seed mode TVs"
 
 
-def test_the_mode_answer_has_one_sentence_per_outcome():
+def test_the_mode_answer_says_each_outcome_in_the_rules_words():
+    """The head of the answer for each outcome of the rule, and every comparator's part is
+    the count of the words :func:`against` and :func:`floor` gave: no word of its own."""
     from dc_lesson.experiments import table_one_modes as tm
+    from dc_lesson.experiments.table_one_mixture import count_words
     tasks = ("reacher2", "reacher4", "halfcheetah2")
     tv = {**{(t, "bc-full"): 0.40 for t in tasks}, **{(t, "bc-lib"): 0.30 for t in tasks},
           **{(t, "expert"): 0.10 for t in tasks}, **{(t, "dc"): 0.11 for t in tasks}}
 
     def said(d_start, d_best, n_seeds=10):
         diff = {**{("bc", t): d_start for t in tasks}, **{("bc-lib", t): d_best for t in tasks}}
-        return tm.conclusion(_modes_rec(tv, diff, n_seeds))
+        rec = _modes_rec(tv, diff, n_seeds)
+        c = tm.conclusion(rec)
+        a, fl = tm.against(rec), tm.floor(rec)
+        for label, per in (("its start", a["bc"]), ("the better-trained BC", a[tm.BEST_BC])):
+            grouped: dict = {}
+            for t, (_, w, _) in per.items():
+                grouped.setdefault(w, []).append(t)
+            assert f"Against {label}: {count_words(grouped)}" in c
+        assert c.startswith("Under the mean action, *DC keeps more of the expert's modes*")
+        return c, fl
 
-    assert "better than BC can" in said(-0.2, -0.2)
-    assert "no more than BC trained well" in said(-0.2, 0.0)
-    assert "but fewer than BC trained well" in said(-0.2, +0.2)
-    assert "fewer" not in said(-0.2, 0.0)
-    assert "no more modes than the start it is given" in said(0.0, 0.0)
-    assert "no more modes than the start it is given" in said(+0.2, +0.2)
-    # four seeds are too few for a word: no claim either way
-    assert "too few paired seeds to say" in said(-0.2, -0.2, n_seeds=4)
-    assert "on no task is its mode TV distinguishable from the expert's own" in said(-0.2, 0.0)
+    head = lambda c: c.split(". ")[0]
+    c, fl = said(-0.2, -0.2)
+    assert head(c).endswith("is reproduced against the better-trained BC on every task: DC "
+                            "keeps the modes better than BC can")
+    c, _ = said(-0.2, 0.0)
+    assert head(c).endswith("is reproduced against its start on every task, and against the "
+                            "better-trained BC on no task")
+    assert "Against the better-trained BC: equal within 0.05 on every task" in c
+    c, _ = said(-0.2, +0.2)
+    assert head(c).endswith(", where it is contradicted on every task")
+    c, _ = said(0.0, 0.0)
+    assert head(c).endswith("is reproduced against its start on no task")
+    assert "Against its start: equal within 0.05 on every task" in c
+    c, _ = said(+0.2, +0.2)
+    assert head(c).endswith("is contradicted against its start on every task")
+    # four seeds are too few for a word: no claim either way, and the reason is said
+    c, fl = said(-0.2, -0.2, n_seeds=4)
+    assert head(c).endswith("is not judged against its start on any task")
+    assert "Against its start: not judged: fewer than 5 paired seeds on every task" in c
+    assert "(unpaired): not judged: fewer than 5 seeds on a side on every task" in c
+    # DC 0.01 above the expert's own mode TV: equal within the smallest effect
+    c, fl = said(-0.2, 0.0)
+    assert {w for w, _, _ in fl.values()} == {"equal within 0.05"}
+    assert "(unpaired): equal within 0.05 on every task" in c
+    for old in ("higher", "lower on", "no more", "fewer", "distinguish"):
+        assert old not in c, old
 
 
 def test_the_mode_answer_flags_a_comparator_that_reaches_nothing():
@@ -579,3 +618,89 @@ def test_said_judges_any_measure_with_its_direction_floor_and_the_rules_interval
     assert table_one.word(small, "emd", floor=0.05) == "equal within 0.05"
     assert table_one.word(small, "emd", floor=0.001) == verdicts.INCONCLUSIVE
     assert table_one.said(None, "emd") == "*not judged: not run yet*"
+
+
+def _headline_rec(dc_emd_factor, seeds={"reacher2": 10, "halfcheetah2": 5}):
+    """A table1 aggregate for the headline across tasks: per task the expert's EMD floor
+    (0.02 on the reacher, 2.0 on the cheetah: two scales), the expert at 1 floor, BC at 3
+    floors and DC at ``dc_emd_factor`` floors per seed (+-0.1 floor), GAIL on the reacher
+    only; scaled returns expert 1, BC 0.5, DC 0.7."""
+    floor = {"reacher2": 0.02, "halfcheetah2": 2.0}
+    obs = []
+    for task, n in seeds.items():
+        for s in range(n):
+            jitter = 0.1 * (s - (n - 1) / 2) / n
+            for row, f, ret in (("expert", 1.0, 1.0), ("bc", 3.0, 0.5),
+                                ("dc", dc_emd_factor, 0.7), ("gail", 2.0, 0.9),
+                                ("bc-lib", 0.1, 1.0)):
+                if row == "gail" and task != "reacher2":
+                    continue
+                obs.append({"task": task, "row": row, "seed": s, "n_demos": 18,
+                            "emd": floor[task] * (f + jitter), "scaled_return": ret + jitter})
+    expert = [{"task": t, "row": "expert", "emd_mean": f} for t, f in floor.items()]
+    return {a: {"observations": obs, "expert": expert} for a in ("mean", "sampled")}
+
+
+def test_the_headline_across_tasks_is_iqm_in_expert_floors_and_p_of_improvement():
+    rows = {r["row"]: r for r in table_one.across_tasks(_headline_rec(2.0))}
+    # GAIL ran on one task only: the strata are the tasks every headline row ran on, so
+    # with GAIL present the headline rests on reacher2 alone
+    assert rows["bc"]["tasks"] == 1 and rows["bc"]["runs"] == 10
+    rec = _headline_rec(2.0)
+    for part in rec.values():
+        part["observations"] = [o for o in part["observations"] if o["row"] != "gail"]
+    rows = {r["row"]: r for r in table_one.across_tasks(rec)}
+    assert list(rows) == ["expert", "bc", "dc"]          # bc-lib is no headline row
+    assert rows["bc"]["tasks"] == 2 and rows["bc"]["runs"] == 15
+    # EMD in expert floors: both tasks' expert rows are at 1 floor, whatever their scale
+    assert rows["expert"]["EMD (in expert floors)"].startswith("1.00")
+    assert rows["bc"]["EMD (in expert floors)"].startswith("3.00")
+    assert rows["dc"]["EMD (in expert floors)"].startswith("2.00")
+    # DC is lower than BC on every run of every task: P(dc lower EMD) is 1; its return is
+    # higher than BC's: P 1 too, and never above the expert's
+    assert rows["bc"]["P(dc lower EMD)"] == "1.00"
+    assert rows["bc"]["P(dc higher return)"] == "1.00"
+    assert rows["expert"]["P(dc lower EMD)"] == "0.00"
+    assert rows["dc"]["P(dc lower EMD)"] == "" and rows["dc"]["P(dc higher return)"] == ""
+    # DC at BC's level: half of the run pairs each way (ties count half)
+    even = {r["row"]: r for r in table_one.across_tasks(
+        {a: {**p, "observations": [o if o["row"] != "dc" else
+                                   {**o, "emd": o["emd"] * 1.5} for o in p["observations"]]}
+         for a, p in rec.items()})}
+    assert even["bc"]["P(dc lower EMD)"].startswith("0.50")
+    # a task without the expert's floor cannot be put in floors: it is left out of the
+    # headline on both measures
+    for part in rec.values():
+        part["expert"] = part["expert"][:1]
+    rows = {r["row"]: r for r in table_one.across_tasks(rec)}
+    assert rows["bc"]["tasks"] == 1 and rows["bc"]["runs"] == 10
+    # the shared estimator: lower is better with better=-1; the target's own row has no P
+    from dc_lesson.experiments import report
+    by = {"bc": {"a": [3.0, 3.0]}, "dc": {"a": [1.0, 1.0], "b": [1.0]}}
+    (bc, dc) = report.across_tasks(by, ("bc", "dc"), better=-1)
+    assert bc["strata"] == 1 and bc["P"] == "1.00" and dc["P"] == ""
+    assert report.across_tasks(by, ("bc", "dc"))[0]["P"] == "0.00"
+    assert report.across_tasks(by, ("bc",)) == []                 # the target did not run
+
+
+def test_the_imitation_check_is_unpaired_and_in_the_rules_words():
+    def ref(ours, theirs):
+        return {"task": "reacher4", "n_demos": 18, "n_episodes": 50,
+                "rows": [{"library": "ours", "seed": s, "scaled_return": v}
+                         for s, v in enumerate(ours)] +
+                        [{"library": "imitation", "seed": s, "scaled_return": v}
+                         for s, v in enumerate(theirs)]}
+    same = [0.90, 0.91, 0.92, 0.93, 0.94, 0.95]
+    s = table_one.against_imitation(ref(same, same[::-1]))
+    assert "*equal within 0.05*" in s and "unpaired" in s and "Welch" in s
+    # the pairing is not used: ours shifted seed by seed against reversed seeds still equal
+    low = [v - 0.3 for v in same]
+    s = table_one.against_imitation(ref(low, same))
+    assert "*contradicted* (ours worse)" in s and "ours minus imitation -0.300 [" in s
+    assert "(lowest 0.600)" in s and "over 6 seeds (lowest 0.900)" in s
+    assert "*reproduced* (ours better)" in table_one.against_imitation(ref(same, low))
+    # a wide spread cannot tell: inconclusive, not a paired word
+    wide = [0.3, 0.95, 0.4, 0.9, 0.5, 0.96]
+    assert "*inconclusive*" in table_one.against_imitation(ref(wide, same))
+    assert "*not judged: fewer than 5 seeds on a side*" in \
+        table_one.against_imitation(ref(same[:4], same))

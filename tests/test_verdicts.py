@@ -178,3 +178,35 @@ def test_every_measure_with_a_smallest_effect_is_in_the_chapters_table():
     assert set(rows) == set(v.SMALLEST) | set(v.DIVERGENCES)
     assert rows["scaled_return"]["smallest effect"] == f"{v.SMALLEST['scaled_return']:g}"
     assert all(r["on"] for r in rows.values())
+
+
+@pytest.mark.parametrize("null", sorted(v.NULLS))
+@pytest.mark.parametrize("n", [5, 6, 10])
+def test_the_unpaired_rule_is_calibrated_like_the_paired_one(null, n):
+    """Welch's t on two unpaired samples of n values from the same null (``welch_rule`` splits
+    each simulated row of 2n into its halves) declares a difference at most 0.06 of the time,
+    and so does a null where one side spreads five times more than the other."""
+    assert v.false_positive_rate(v.welch_rule, null, 2 * n, sims=20000) <= 0.06
+    rng = np.random.default_rng(n)
+    uneven = np.concatenate([rng.normal(0, 0.02, (20000, n)), rng.normal(0, 0.1, (20000, n))], 1)
+    assert np.mean(v.welch_rule(uneven)) <= 0.06
+
+
+def test_welch_matches_scipy_and_decides_in_the_one_vocabulary():
+    from scipy import stats as s
+    a, b = [0.755, 0.764, 0.745, 0.958, 0.95, 0.979], [0.934, 0.962, 0.969, 0.957, 0.922]
+    t, ref = v.welch_t(a, b), s.ttest_ind(a, b, equal_var=False)
+    ci = ref.confidence_interval(0.95)
+    assert t.p == pytest.approx(ref.pvalue) and (t.lo, t.hi) == pytest.approx((ci.low, ci.high))
+    assert t.n == 5
+    x = np.random.default_rng(1).normal(0.05, 0.1, (200, 10))
+    by_one = [v.kind(v.decide(v.welch_t(r[:5], r[5:]), 1, 0.0)) in (v.REPRODUCED,
+                                                                      v.CONTRADICTED) for r in x]
+    assert by_one == v.welch_rule(x).tolist()
+    base = np.array([0.90, 0.91, 0.92, 0.93, 0.94, 0.95])
+    assert v.word_unpaired(base, base[::-1], "scaled_return", +1) == "equal within 0.05"
+    assert v.word_unpaired(base + 0.2, base, "scaled_return", +1) == v.REPRODUCED
+    assert v.word_unpaired(base + 0.2, base, "mode_tv", -1) == v.CONTRADICTED
+    assert v.word_unpaired(base + 0.02, base, "scaled_return", +1) == "equal within 0.05"
+    assert v.word_unpaired(base[:4], base, "scaled_return", +1) == \
+        "not judged: fewer than 5 seeds on a side"

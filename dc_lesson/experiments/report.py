@@ -4,7 +4,8 @@ verdict, always rendered from an aggregate (``data/results/STUDY.json``), never 
     from dc_lesson.experiments import report
     report.value("bc_demos", "scaled_return", task="reacher4", n_demos=25)  # 'MEAN [LO, HI]'
     report.fmt(mean, lo, hi, digits=3)       # the same from numbers already read
-    (every interval the 95% t interval over seeds, the one the verdict rule reads)
+    (every interval the 95% t interval over seeds, the one the verdict rule reads; a measure
+    with known limits is printed clipped to them, :data:`BOUNDS`)
     report.verdict(v)                        # 'VERDICT: task: dc - bc = D [LO, HI] over N ...'
 """
 
@@ -14,16 +15,51 @@ import math
 
 from dc_lesson.storage import read_result
 
+INF = float("inf")
+# Measures whose values cannot leave known limits (a t interval, symmetric about the mean, can:
+# a mode TV of 0.99 over seeds may print "0.99 [0.98, 1.01]").  Shares of episodes and total
+# variation distances lie in [0, 1]; an EMD and a spread over checkpoints are never negative.
+# The scaled return is unbounded (a learner can do worse than random or better than the
+# expert), and so are the KL and RKL *estimates* (the expert-vs-expert KL can be below zero).
+BOUNDS = {"mode_tv": (0.0, 1.0), "tv": (0.0, 1.0), "largest_share": (0.0, 1.0),
+          "collapsed_share": (0.0, 1.0), "share": (0.0, 1.0), "probability": (0.0, 1.0),
+          "emd": (0.0, INF), "late_spread": (0.0, INF), "curve_spread": (0.0, INF)}
+
+
+def bounds(measure: str, difference: bool = False) -> tuple[float, float] | None:
+    """The limits of ``measure`` (:data:`BOUNDS`), or of a difference of two of its values
+    (``difference``: ``[lo - hi, hi - lo]``, e.g. ``[-1, 1]`` for a mode TV); None when the
+    measure has none."""
+    b = BOUNDS.get(measure)
+    if b is None:
+        return None
+    return (b[0] - b[1], b[1] - b[0]) if difference else b
+
+
+def clip(lo: float | None, hi: float | None, limits: tuple[float, float] | None):
+    """``(lo, hi)`` clipped to ``limits`` (unchanged without limits or without an interval).
+    For display only: the verdict rule decides on the unclipped interval
+    (:func:`verdicts.paired_t`), and clipping moves no end that lies inside the limits."""
+    if limits is None or lo is None or hi is None:
+        return lo, hi
+    return min(max(lo, limits[0]), limits[1]), max(min(hi, limits[1]), limits[0])
+
 
 class ReportError(KeyError):
     """No row of the aggregate matches what a chapter asked for."""
 
 
-def fmt(mean: float, lo: float | None = None, hi: float | None = None, digits: int = 2) -> str:
+def fmt(mean: float, lo: float | None = None, hi: float | None = None, digits: int = 2,
+        limits: tuple[float, float] | None = None) -> str:
     """``mean [lo, hi]``; the mean alone when there is no interval (one seed) or when the
-    interval rounds to one number (every seed the same: no ``1.10 [1.10, 1.10]``)."""
+    interval rounds to one number (every seed the same: no ``1.10 [1.10, 1.10]``).
+    ``limits``: the measure's (:func:`bounds`); an interval end beyond them is printed at
+    the limit (a t interval of shares near 1 is printed ``0.99 [0.98, 1.00]``, not
+    ``[0.98, 1.01]``).  Only the printed interval is clipped: every word is decided on the
+    t interval as computed."""
     if lo is None or hi is None or not (math.isfinite(lo) and math.isfinite(hi)):
         return f"{mean:.{digits}f}"
+    lo, hi = clip(lo, hi, limits)
     if f"{lo:.{digits}f}" == f"{hi:.{digits}f}":
         return f"{mean:.{digits}f}"
     return f"{mean:.{digits}f} [{lo:.{digits}f}, {hi:.{digits}f}]"
@@ -61,8 +97,41 @@ def band(entry: dict, measure: str) -> tuple[float, float, float]:
 
 
 def fmt_entry(entry: dict, measure: str, digits: int = 2) -> str:
-    """:func:`band` as ``mean [lo, hi]``."""
-    return fmt(*band(entry, measure), digits)
+    """:func:`band` as ``mean [lo, hi]``, clipped to the measure's limits (:func:`bounds`; a
+    paired entry's to the limits of a difference)."""
+    paired = f"{measure}_diffs" in entry or ("a" in entry and "b" in entry)
+    return fmt(*band(entry, measure), digits, bounds(measure, difference=paired))
+
+
+def across_tasks(by: dict, rows, target: str = "dc", better: int = +1, seed: int = 0,
+                 digits: int = 2) -> list[dict]:
+    """rliable's headline (Agarwal et al. 2021) over the strata every row ran on.  ``by``:
+    ``{row: {stratum: [one score per run]}}`` (a stratum is a task, or a task and a
+    demonstration count).  Per row of ``rows`` found in ``by``, in that order: ``IQM``, the
+    interquartile mean over strata and runs with its stratified bootstrap interval
+    (:func:`stats.iqm_tasks`), and ``P``, the probability that a ``target`` run is better
+    than a run of the row on the same stratum (:func:`stats.probability_of_improvement`,
+    ties half; ``better=-1``: lower scores are better, so it counts ``target < row``) with
+    its interval, ``""`` on the target's own row; ``strata`` and ``runs`` say what it rests
+    on.  ``[]`` when the target did not run or the rows share no stratum.  Descriptive
+    across tasks: no word is decided here (the verdicts are per task, :mod:`verdicts`)."""
+    from dc_lesson.evaluation import stats
+    present = [r for r in rows if r in by]
+    strata = sorted(set.intersection(*(set(by[r]) for r in present))) if present else []
+    if target not in present or not strata:
+        return []
+    sign = 1.0 if better > 0 else -1.0
+    mine = [[sign * v for v in by[target][k]] for k in strata]
+    out = []
+    for r in present:
+        x = [by[r][k] for k in strata]
+        iqm = stats.iqm_tasks(x, seed=seed)
+        poi = (stats.probability_of_improvement(mine, [[sign * v for v in s] for s in x],
+                                                seed=seed) if r != target else None)
+        out.append({"row": r, "IQM": fmt(iqm.mean, iqm.lo, iqm.hi, digits),
+                    "P": fmt(poi.mean, poi.lo, poi.hi, digits, BOUNDS["probability"])
+                    if poi else "", "strata": len(strata), "runs": sum(len(v) for v in x)})
+    return out
 
 
 def row(aggregate: dict | str, table: str = "summary", **match) -> dict:
@@ -123,5 +192,5 @@ def verdict(v) -> str:
     return f"{v.verdict}: {v.evidence}"
 
 
-__all__ = ["ReportError", "band", "fmt", "favourites", "fmt_entry", "live_tag", "row", "t_interval", "trend", "value",
-           "verdict"]
+__all__ = ["BOUNDS", "ReportError", "across_tasks", "band", "bounds", "clip", "fmt", "favourites", "fmt_entry",
+           "live_tag", "row", "t_interval", "trend", "value", "verdict"]

@@ -107,6 +107,12 @@ def tv_band(m: dict) -> tuple[float, float, float]:
     return m["tv_ci"]["mean"], m["tv_ci"]["lo"], m["tv_ci"]["hi"]
 
 
+def fmt_tv(band: tuple[float, float, float]) -> str:
+    """A mode TV ``(mean, lo, hi)`` as ``mean [lo, hi]``, the interval clipped to the TV's
+    limits [0, 1] for display (:func:`report.fmt`)."""
+    return fmt(*band, 2, report.bounds("mode_tv"))
+
+
 def _order(row: str) -> int:
     keys = list(ROWS)
     return keys.index(row) if row in keys else len(keys)
@@ -127,7 +133,7 @@ def table(rec: dict, actions: str = "mean", digits: int = 3) -> list[dict]:
                     **{label: fmt_entry(r, key, digits) for label, key in
                        (("EMD", "emd"), ("KL", "kl"), ("RKL", "rkl"),
                         ("scaled return", "scaled_return")) if f"{key}_mean" in r},
-                    "mode TV": fmt(*tv_band(m), 2) if m else "",
+                    "mode TV": fmt_tv(tv_band(m)) if m else "",
                     "collapsed seeds": (f"{round(m['collapsed_share'] * m['n_seeds'])}/"
                                         f"{m['n_seeds']}") if m else "",
                     "modes": ", ".join(f"{k} {v:.2f}" for k, v in
@@ -195,6 +201,80 @@ def controls(rec: dict, actions: str = "mean") -> list[dict]:
                         "word": _verdicts.kind(w),
                         "reason": w.split(": ", 1)[1] if ": " in w else w[len(_verdicts.kind(w)):].strip()})
     return out
+
+
+# The rows of the headline across tasks: the floor, the paper's learners (BC: every RL row's
+# start), DC last.
+HEADLINE_ROWS = ("expert", "bc", "gail", "dril", "pwil", "ndi", "gpril", "dc")
+
+
+def across_tasks(rec: dict, actions: str = "mean", target: str = "dc",
+                 seed: int = 0) -> list[dict]:
+    """Table I's headline over its three tasks, as Table III's (rliable, Agarwal et al. 2021;
+    :func:`report.across_tasks`): per row of :data:`HEADLINE_ROWS`, on EMD and on scaled
+    return, the interquartile mean over tasks and seeds with its stratified bootstrap
+    interval, and the probability that a ``target`` run is better than a run of the row on
+    the same task (lower EMD, higher scaled return), with its interval.
+
+    EMD has each task's own scale (halfcheetah2's expert-vs-expert EMD is about 1.8, the
+    reachers' 0.02-0.04), and an IQM pooled over tasks on raw EMD would be halfcheetah2's
+    alone.  So its IQM is of EMD *in expert floors*: each run's EMD divided by the mean EMD
+    of the expert row on its task (:func:`claims.floors`; 1 is as close as a second sample of
+    the expert, and the floor is taken as known, not resampled).  A task without an expert
+    row has no floor and is left out of the headline, on both measures, so that both rest on
+    the same tasks.  The probability of improvement compares runs within a task, so it is
+    the same on either scale.  The scaled return is on one scale already (random 0, expert
+    1).  Tasks keep their seeds (10, 10 and 5 here): the IQM pools the runs, so a task
+    weighs by its seeds, while the probability averages tasks equally.
+    Descriptive: the per-task words are the claims' and the controls'."""
+    floors = {t: f["emd"] for t, f in claims.floors(rec, actions).items()
+              if (f.get("emd") or 0) > 0}
+    measures = (("emd", -1, "EMD (in expert floors)", f"P({target} lower EMD)"),
+                ("scaled_return", +1, "scaled return", f"P({target} higher return)"))
+    out: dict = {}
+    for measure, better, iqm_label, p_label in measures:
+        by: dict = {}
+        for o in rec[actions]["observations"]:
+            if o["row"] in HEADLINE_ROWS and o["task"] in floors and o.get(measure) is not None:
+                unit = floors[o["task"]] if measure == "emd" else 1.0
+                by.setdefault(o["row"], {}).setdefault(o["task"], []).append(o[measure] / unit)
+        for r in report.across_tasks(by, HEADLINE_ROWS, target, better, seed):
+            got = out.setdefault(r["row"], {"row": r["row"]})
+            got.update({iqm_label: r["IQM"], p_label: r["P"], "tasks": r["strata"],
+                        "runs": r["runs"]})
+    return [out[r] for r in HEADLINE_ROWS if r in out]
+
+
+def against_imitation(ref: dict, measure: str = "scaled_return",
+                      floor: float | None = None) -> str:
+    """Chapter 04's check of ``bc-lib`` against the imitation library itself
+    (``data/results/imitation_reference.json``, ``python -m dc_lesson.perf.imitation_ref``):
+    our BC with the library's recipe minus the library's own BC on ``measure``, as a
+    rendered Markdown sentence with each side's mean and lowest seed, Welch's 95% interval
+    and the word of :func:`verdicts.word_unpaired` for "ours is better".
+
+    The comparison is **unpaired**: the two libraries' seeds draw different random numbers,
+    so seed 0 of one shares nothing with seed 0 of the other and the paired rule does not
+    apply.  The unpaired rule keeps the vocabulary and the smallest effect (0.05 scaled
+    return): *equal within 0.05* is the answer "ours is as good as the library's";
+    *inconclusive* says six seeds a side cannot tell.  ``floor``: a divergence's
+    expert-vs-expert value on the task, its smallest effect."""
+    by = {who: [r[measure] for r in ref["rows"] if r["library"] == who]
+          for who in ("ours", "imitation")}
+    direction = _verdicts.BETTER.get(measure, +1)
+    t = _verdicts.welch_t(by["ours"], by["imitation"])
+    w = _verdicts.word_unpaired(by["ours"], by["imitation"], measure, direction, floor)
+    side = {_verdicts.REPRODUCED: " (ours better)",
+            _verdicts.CONTRADICTED: " (ours worse)"}.get(w, "")
+    band = (f" [{_verdicts.fmt_num(t.lo)}, {_verdicts.fmt_num(t.hi)}]" if t.n >= 2 else "")
+    mean = statistics.mean
+    return (f"On `{ref['task']}` ({ref['n_demos']} demonstrations, {ref['n_episodes']} "
+            f"episodes, mean action), {measure.replace('_', ' ')}: imitation's BC "
+            f"{mean(by['imitation']):.3f} over {len(by['imitation'])} seeds (lowest "
+            f"{min(by['imitation']):.3f}), ours with its recipe {mean(by['ours']):.3f} over "
+            f"{len(by['ours'])} (lowest {min(by['ours']):.3f}); ours minus imitation "
+            f"{_verdicts.fmt_num(t.mean)}{band} (Welch's 95% interval, unpaired), "
+            f"*{w}*{side}.")
 
 
 def beside_paper(rec: dict, actions: str = "mean") -> list[dict]:
@@ -354,8 +434,8 @@ def summary_lines(rec: dict, actions: str = "mean") -> list[str]:
         if e_gail and "emd" in e_gail:
             bits.append(f"minus GAIL's {said(e_gail, 'emd', rec, actions)}")
         if m_dc and m_bc:
-            bits.append(f"mode TV from the expert's shares {fmt(*tv_band(m_dc), 2)} "
-                        f"against the start's {fmt(*tv_band(m_bc), 2)} "
+            bits.append(f"mode TV from the expert's shares {fmt_tv(tv_band(m_dc))} "
+                        f"against the start's {fmt_tv(tv_band(m_bc))} "
                         f"(multinomial floor {m_dc['tv_floor']['mean']:.2f}); collapsed seeds: "
                         f"DC {round(m_dc['collapsed_share'] * m_dc['n_seeds'])} of "
                         f"{m_dc['n_seeds']}, start {round(m_bc['collapsed_share'] * m_bc['n_seeds'])}"
@@ -388,7 +468,8 @@ def costs(rec: dict, since: str | None = None, until: str | None = None) -> list
     return _agg.costs("table1", rec["budget"], since, until)
 
 
-__all__ = ["CONTROLS", "PAPER_TABLE_I", "RESULT", "ROWS", "TASKS", "beside_paper", "controls",
+__all__ = ["CONTROLS", "HEADLINE_ROWS", "PAPER_TABLE_I", "RESULT", "ROWS", "TASKS",
+           "across_tasks", "against_imitation", "beside_paper", "controls",
            "against_start", "costs", "coverage_figures", "curves", "features",
-           "final_logs", "summary_lines", "tv_band",
+           "final_logs", "fmt_tv", "summary_lines", "tv_band",
            "load", "paired", "rank_agreement", "said", "status", "table", "word"]

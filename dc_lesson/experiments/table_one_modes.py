@@ -15,24 +15,25 @@ against an alternative (:data:`COMPARATORS`):
   ``dc-gailreward`` (Algorithm 2 with a discriminator for log P: whether the density is what
   matters) and ``gail``.
 
-Each comparison's word is :mod:`verdicts`' for "DC's mode TV is lower": *reproduced* (better),
-*contradicted* (worse), *equal within 0.05*, *inconclusive* or *not judged: reason*
-(:func:`table_one_mixture.verdict` with lower-is-better).  And the floor: the expert scored like
-a learner on disjoint episodes has a mode TV of its own (finite episodes); DC is *above the
-expert's* on a task when DC's 95% t interval lies wholly above the expert's (unpaired, so
-cautious),
-else *not distinguished from the expert's*.  A comparator most of whose episodes arrive at no
-mode (``none`` >= :data:`LOW_BAR` on a task: an exploring start's sampled actions, say) is
-flagged beside its word: a lower mode TV than a policy that reaches nothing is a low bar.
+Each comparison's word is :mod:`verdicts`' for "DC's mode TV is lower" (DC keeps more of the
+expert's modes): *reproduced* (better), *contradicted* (worse), *equal within 0.05*,
+*inconclusive* or *not judged: reason* (:func:`table_one_mixture.verdict` with
+lower-is-better).  And the floor: the expert scored like a learner on disjoint episodes has a
+mode TV of its own (finite episodes).  DC's seeds share nothing with the expert's, so that
+comparison is unpaired: the same claim judged by :func:`verdicts.word_unpaired` (Welch's t,
+the same smallest effect and words; *contradicted* there means DC's mix stays further from the
+expert's than the expert's own does).  A comparator most of whose episodes arrive at no mode
+(``none`` >= :data:`LOW_BAR` on a task: an exploring start's sampled actions, say) is flagged
+beside its word: a lower mode TV than a policy that reaches nothing is a low bar.
 
-:func:`conclusion` turns the words into the chapter's one-sentence answer by a fixed rule
-(tested on constructed aggregates in ``tests/test_table1.py``).
+:func:`conclusion` puts the words into the chapter's answer by a fixed rule, in the same
+vocabulary (tested on constructed aggregates in ``tests/test_table1.py``).
 """
 
 from __future__ import annotations
 
-from dc_lesson.experiments.report import fmt, fmt_entry
-from dc_lesson.experiments.table_one import TASKS, paired, tv_band
+from dc_lesson.experiments.report import fmt_entry
+from dc_lesson.experiments.table_one import TASKS, fmt_tv, paired, tv_band
 from dc_lesson.experiments import verdicts as V
 from dc_lesson.experiments.table_one_mixture import count_words, verdict
 
@@ -85,27 +86,33 @@ def against(rec: dict, actions: str = "mean") -> dict:
 
 
 def floor(rec: dict, actions: str = "mean") -> dict:
-    """``{task: (word, dc's (mean, lo, hi), the expert's)}`` for the tasks where both ran
-    (:func:`table_one.tv_band`)."""
+    """``{task: (word, dc's (mean, lo, hi), the expert's)}`` for the tasks where both ran: the
+    word of :func:`verdicts.word_unpaired` for "DC's mode TV is lower than the expert's own"
+    on their per-seed mode TVs (unpaired), beside each side's t interval
+    (:func:`table_one.tv_band`); ``not judged`` when the aggregate has no per-seed values."""
     out = {}
     for task in TASKS:
         dc, ex = _tv(rec, task, "dc", actions), _tv(rec, task, "expert", actions)
         if not dc or not ex:
             continue
-        d, x = tv_band(dc), tv_band(ex)     # (mean, lo, hi): 95% t intervals over seeds
-        above = d[1] is not None and x[2] is not None and d[1] > x[2]
-        out[task] = ("above the expert's" if above else "not distinguished from the expert's",
-                     d, x)
+        word = (V.word_unpaired(dc["tv"], ex["tv"], "mode_tv", -1) if dc.get("tv") and
+                ex.get("tv") else f"{V.NOT_JUDGED}: no per-seed mode TVs")
+        out[task] = (word, tv_band(dc), tv_band(ex))
     return out
 
 
 def _tasks(by_task: dict, wanted: str) -> list[str]:
-    return [t for t, (_, v, _) in by_task.items() if v == wanted]
+    """The tasks whose word is of the vocabulary's kind ``wanted`` (``equal within`` takes
+    ``equal within 0.05``)."""
+    return [t for t, (_, v, _) in by_task.items() if V.kind(v) == wanted]
 
 
 def _words(by_task: dict) -> str:
     """The per-task verdicts of one comparator in words (:func:`table_one_mixture.count_words`)."""
-    return count_words({v: _tasks(by_task, v) for _, v, _ in by_task.values()})
+    grouped: dict = {}
+    for t, (_, v, _) in by_task.items():
+        grouped.setdefault(v, []).append(t)
+    return count_words(grouped)
 
 
 def lines(rec: dict, actions: str = "mean") -> list[str]:
@@ -129,8 +136,8 @@ def lines(rec: dict, actions: str = "mean") -> list[str]:
     fl = floor(rec, actions)
     if fl:
         out.append("* against **the expert scored like a learner** (its own mode TV over "
-                   "finite episodes): " + "; ".join(
-                       f"{t} {w} (DC {fmt(*d, 2)}, expert {fmt(*x, 2)})"
+                   "finite episodes; unpaired, Welch's t): " + "; ".join(
+                       f"{t} *{w}* (DC {fmt_tv(d)}, expert {fmt_tv(x)})"
                        for t, (w, d, x) in fl.items())
                    + ".")
     return out
@@ -179,46 +186,59 @@ def _n(tasks: list[str]) -> str:
 
 
 def conclusion(rec: dict, actions: str = "mean") -> str:
-    """The answer in one sentence, by a fixed rule on :func:`against` and :func:`floor`:
+    """The answer in a sentence and its evidence, in :mod:`verdicts`' words for the claim "DC keeps more of
+    the expert's modes" (its mode TV is lower), by a fixed rule on :func:`against` and
+    :func:`floor`.  The head, first that applies:
 
-    * better than the better-trained BC on every task: DC keeps the modes better than BC can;
-    * better than it on some tasks: DC keeps more modes than BC there only;
-    * better than its start somewhere but nowhere better than the better-trained BC: what DC
-      keeps beyond its start, BC trained well on the same demonstrations keeps too (*fewer*
-      than that BC when it is worse on some task, *no more* otherwise);
-    * too few paired seeds against the start on every task: no answer;
-    * otherwise: DC keeps no more modes than the start it is given.
+    * *reproduced* against the better-trained BC on every task (DC keeps the modes better
+      than BC can);
+    * *reproduced* against it on some tasks (there only);
+    * *reproduced* against its start on some tasks, and against the better-trained BC on
+      none (with where it is *contradicted* against that BC);
+    * *not judged* against its start on every task (the reasons follow);
+    * *contradicted* against its start on some task;
+    * otherwise *reproduced against its start on no task*.
 
-    Then whether DC's mode mix is above the expert's own on every task where both ran.
+    Then each comparator's words per task (:func:`_words`): its start (a low bar flagged),
+    the better-trained BC, and the expert scored like a learner (unpaired).
     """
     a = against(rec, actions)
-    start, best = _tasks(a["bc"], V.REPRODUCED), _tasks(a[BEST_BC], V.REPRODUCED)
-    if len(best) == len(TASKS):
-        s = "DC keeps the modes better than BC can: lower mode TV than the better-trained BC "
-        s += "on every task"
-    elif best:
-        s = f"DC keeps more modes than the better-trained BC on {_n(best)} only"
-    elif start:
-        low = [t for t in start if _none(rec, t, "bc", actions) >= LOW_BAR]
-        worse = _tasks(a[BEST_BC], V.CONTRADICTED)
-        s = (f"DC keeps more modes than the start it is given ({_n(start)}"
-             + (f"; a low bar on {', '.join(low)}, where the start's episodes mostly arrive "
-                f"nowhere" if low else "") + "), "
-             + (f"but fewer than BC trained well on the same demonstrations (its mode TV is "
-                f"higher than the better-trained BC's on {_n(worse)}, lower on none)" if worse
-                else "but no more than BC trained well on the same demonstrations (on no "
-                     "task is its mode TV lower than the better-trained BC's)"))
-    elif all(V.kind(v) == V.NOT_JUDGED for _, v, _ in a["bc"].values()):
-        s = "too few paired seeds to say whether DC keeps more modes than its start"
+    start, best = a["bc"], a[BEST_BC]
+    s_rep, s_con = _tasks(start, V.REPRODUCED), _tasks(start, V.CONTRADICTED)
+    b_rep, b_con = _tasks(best, V.REPRODUCED), _tasks(best, V.CONTRADICTED)
+    if len(b_rep) == len(TASKS):
+        head = (f"{V.REPRODUCED} against the better-trained BC on every task: DC keeps the "
+                f"modes better than BC can")
+    elif b_rep:
+        head = f"{V.REPRODUCED} against the better-trained BC on {_on(b_rep)} only"
+    elif s_rep:
+        head = (f"{V.REPRODUCED} against its start on {_on(s_rep)}, and against the "
+                f"better-trained BC on no task"
+                + (f", where it is {V.CONTRADICTED} on {_on(b_con)}" if b_con else ""))
+    elif all(V.kind(v) == V.NOT_JUDGED for _, v, _ in start.values()):
+        head = f"{V.NOT_JUDGED} against its start on any task"
+    elif s_con:
+        head = f"{V.CONTRADICTED} against its start on {_on(s_con)}"
     else:
-        s = "DC keeps no more modes than the start it is given (on no task is its mode TV lower)"
+        head = f"{V.REPRODUCED} against its start on no task"
+    low = [t for t in s_rep if _none(rec, t, "bc", actions) >= LOW_BAR]
+    parts = [f"Against its start: {_words(start)}"
+             + (f" (a low bar on {', '.join(low)}, where the start's episodes mostly arrive "
+                f"nowhere)" if low else ""),
+             f"Against the better-trained BC: {_words(best)}"]
     fl = floor(rec, actions)
-    above = [t for t, (w, _, _) in fl.items() if w == "above the expert's"]
     if fl:
-        s += (f"; its mode mix stays further from the expert's than the expert's own does "
-              f"({_n(above)})" if above else
-              "; on no task is its mode TV distinguishable from the expert's own")
-    return f"Under the {actions} action: {s}."
+        parts.append("Against the expert scored like a learner (unpaired): "
+                     + _words({t: (None, w, None) for t, (w, _, _) in fl.items()}))
+    return (f"Under the {actions} action, *DC keeps more of the expert's modes* (a lower mode "
+            f"TV) is {head}. " + ". ".join(parts) + ".")
+
+
+def _on(tasks: list[str]) -> str:
+    """``every task`` or ``2 of 3 tasks (reacher2, reacher4)``."""
+    if len(tasks) == len(TASKS):
+        return "every task"
+    return f"{len(tasks)} of {len(TASKS)} tasks ({', '.join(tasks)})"
 
 
 __all__ = ["BCS", "BEST_BC", "COMPARATORS", "against", "best_bc", "conclusion", "floor",

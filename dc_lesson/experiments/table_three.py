@@ -26,7 +26,7 @@ from dc_lesson.evaluation import stats
 from dc_lesson.experiments import ablations as _ablations, claims as _claims
 from dc_lesson.experiments import verdicts as _verdicts
 from dc_lesson.experiments import report
-from dc_lesson.experiments.report import band, fmt, fmt_entry
+from dc_lesson.experiments.report import band, fmt_entry
 
 kendall_tau = stats.kendall_tau   # the chapter's name for it
 
@@ -273,26 +273,15 @@ def across_tasks(rec: dict, n_demos=None, target: str = "dc", measure: str = "sc
     learner ran (``n_demos``: one count, or all): per learner, the IQM over pairs and seeds
     with its stratified bootstrap interval, and the probability that a ``target`` run beats
     one of the learner's on the same pair (``P(dc > X)``) with its interval."""
-    obs = [o for o in rec["observations"] if o["row"] in LEARNERS and o.get(measure) is not None
-           and (n_demos is None or o["n_demos"] == n_demos)]
     by: dict = {}
-    for o in obs:
-        by.setdefault(o["row"], {}).setdefault((o["task"], o["n_demos"]), []).append(o[measure])
-    strata = sorted(set.intersection(*(set(v) for v in by.values()))) if by else []
-    if target not in by or not strata:
-        return []
-    out = []
-    for row in LEARNERS:
-        if row not in by:
-            continue
-        x = [by[row][k] for k in strata]
-        iqm = stats.iqm_tasks(x, seed=seed)
-        poi = (stats.probability_of_improvement([by[target][k] for k in strata], x, seed=seed)
-               if row != target else None)
-        out.append({"learner": row, "IQM": fmt(iqm.mean, iqm.lo, iqm.hi, 2),
-                    f"P({target} > learner)": fmt(poi.mean, poi.lo, poi.hi, 2) if poi else "",
-                    "pairs": len(strata), "runs": sum(len(v) for v in x)})
-    return out
+    for o in rec["observations"]:
+        if o["row"] in LEARNERS and o.get(measure) is not None and (
+                n_demos is None or o["n_demos"] == n_demos):
+            by.setdefault(o["row"], {}).setdefault((o["task"], o["n_demos"]), []).append(
+                o[measure])
+    return [{"learner": r["row"], "IQM": r["IQM"], f"P({target} > learner)": r["P"],
+             "pairs": r["strata"], "runs": r["runs"]}
+            for r in report.across_tasks(by, LEARNERS, target, seed=seed)]
 
 
 def figure8(rec1: dict, actions: str = "mean") -> dict:
