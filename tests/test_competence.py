@@ -97,7 +97,9 @@ def test_the_grid_has_every_learner_on_every_part_and_seed(name):
 # every weight by about the learning rate in the direction of the gradient's noise, with no
 # iteration left to recover; at lesson (400,000 interactions, seeds 0-1) it kept 1.00 at every
 # checkpoint. The test stays a strict expected failure of the smoke proxy, not of the learner.
-FAILS_TODAY = {"ppo", "ndi", "gpril"}
+# NDI with the study's settings (entropy bonus off, advantages not standardised): drops
+# 0.00003 / 0.00001 / 0.00001, so it passes (it dropped 0.69 on seed 1 before).
+FAILS_TODAY = {"ppo", "gpril"}
 SEEDS = 3
 
 
