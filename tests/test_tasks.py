@@ -427,3 +427,29 @@ def test_the_batched_engine_equals_copy_by_copy_stepping_over_a_whole_episode(na
     assert got[3] and want[3]
     with pytest.raises(ValueError, match="not running"):
         fast.reset_one(2, 0)
+
+
+def test_the_hopper_s_drawn_floor_outlasts_its_expert_and_changes_no_physics():
+    import numpy as np
+    from dc_lesson import data, tasks
+    from dc_lesson.tasks import hopper
+    # how far the expert's demonstrations get: the integral of the forward speed (obs 5)
+    reach = max(t.observations[:, 5].sum() * hopper.SPEC.control_timestep
+                for t in data.load_demos("hopper").trajectories)
+    env = tasks.load("hopper", seed=0)
+    floor = env.physics.model.geom("floor")
+    assert floor.size[0] > 1.5 * reach        # the picture: the body stays on the floor
+
+    def states(xml):
+        physics = hopper.Physics.from_xml_string(xml, {})
+        rng, out = np.random.default_rng(0), []
+        for _ in range(300):
+            physics.set_control(rng.uniform(-1, 1, 3))
+            physics.step()
+            out.append(physics.data.qpos.copy())
+        return np.array(out)
+
+    xml, _ = hopper.get_model_and_assets()
+    narrow = xml.replace('size="60 60 .125"', 'size="20 20 .125"')
+    assert narrow != xml
+    np.testing.assert_array_equal(states(xml), states(narrow))   # a plane collides everywhere
