@@ -83,11 +83,11 @@ TERMINATE = {"hopper": "hopper-fall"}
 # (a flat reward then gives small steps instead of unit-size ones), 0.21 / 0.00 / 0.25 / 0.54.
 # Tried and not adopted, same seeds: a gradient penalty of 10 (1M interactions, seeds 0-1:
 # 0.76, 1.05), a state-only D (up to 0.85), the expert noise alone (0.70-0.76), unstandardised
-# advantages alone (0.23-0.54), and on top of both: lr 1e-4 (0.65 on seed 3), 10 critic-only
+# advantages alone (0.23-0.46), and on top of both: lr 1e-4 (0.65 on seed 3), 10 critic-only
 # iterations (0.99 on seed 0), target_kl 0.005 (0.64 on seed 6).
-# GPRIL (same setting, seeds 0 and 1; its preset at smoke lost 0.78-0.89 of its start on
-# seeds 0-2): with the predecessors' weight w at 0.1 instead of 1 it kept 1.00 at every
-# checkpoint of both seeds. Predecessors sampled from flows still fitting the learner's first
+# GPRIL (same setting, seeds 0-3; its preset at smoke lost 0.78-0.89 of its start on
+# seeds 0-2): with the predecessors' weight w at 0.1 instead of 1 it ended at 1.00 on all
+# four, its worst checkpoint 0.00 / 0.00 / 0.20 / 0.00 below the start. Predecessors sampled from flows still fitting the learner's first
 # batches are noise, and at w = 1 they weigh as much as the expert's own pairs.
 # NDI (same setting, seeds 0-3): with advantages not standardised its entropy bonus (lambda
 # 0.01) still dropped it 0.63 and 0.33 at a checkpoint on two seeds; with lambda 0 as well,
