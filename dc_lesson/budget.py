@@ -100,6 +100,8 @@ class Budget:
     competence_eval_episodes: int = 20
     clonable_seeds: int = 3              # BC seeds per task in the clonable study
     clonable_eval_episodes: int = 50     # fresh episodes each of them is scored on
+    headroom_seeds: int = 3              # BC seeds per (task, protocol, count): `sweep headroom`
+    headroom_eval_episodes: int = 20     # fresh episodes each of them is scored on
 
     def table3_steps_for(self, task: str) -> int:
         """Interactions of one RL run of the single-mode benchmark on ``task``."""
@@ -132,7 +134,7 @@ PRESETS: dict[str, Budget] = {
                     competence_keep_steps=2048, competence_learn_steps=2048,
                     competence_curve_points=2, competence_curve_episodes=1,
                     competence_eval_episodes=2, clonable_seeds=1,
-                    clonable_eval_episodes=2),
+                    clonable_eval_episodes=2, headroom_seeds=1, headroom_eval_episodes=2),
     "lesson": Budget("lesson", tour_episodes=10, video_steps=150, bench_steps=16000,
                      bc_demo_counts=(4, 11, 18, 25), bc_seeds=(0, 1, 2, 3, 4),
                      bc_eval_episodes=50, bc_max_epochs=200, il_demos=18,

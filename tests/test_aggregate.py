@@ -53,7 +53,8 @@ def test_report_renders_from_an_aggregate():
     agg = {"summary": aggregate.table(_obs(), measures=("emd",))}
     r = report.row(agg, row="dc", task="t")
     m, lo, hi = report.t_interval(r["emd_values"])     # the verdict rule's t interval
-    assert report.fmt_entry(r, "emd", 3) == f"{m:.3f} [{lo:.3f}, {hi:.3f}]"
+    # printed clipped to EMD's limit (never negative); the rule decides on the unclipped one
+    assert report.fmt_entry(r, "emd", 3) == f"{m:.3f} [{max(lo, 0.0):.3f}, {hi:.3f}]"
     assert report.fmt(0.5, float("nan"), float("nan")) == "0.50"
     with pytest.raises(report.ReportError, match="exactly one"):
         report.row(agg, task="t")

@@ -127,7 +127,10 @@ def episodes(data) -> list[Episode]:
 
     ``data`` is a :class:`~dc_lesson.data.Demonstrations`, a sequence of
     :class:`~dc_lesson.data.Trajectory`, or a sequence of ``(obs, act)`` array pairs (for
-    synthetic data).  A trajectory's last observation, which no action follows, is dropped.
+    synthetic data).  A trajectory's last observation, which no action follows, is dropped;
+    of a subsampled trajectory (:func:`dc_lesson.data.subsample`) only the kept pairs are
+    taken (``Trajectory.pairs``), so every learner reading pairs through here or
+    :func:`pairs` sees the protocol's pairs.
     """
     if isinstance(data, Demonstrations):
         data = data.trajectories
@@ -136,7 +139,7 @@ def episodes(data) -> list[Episode]:
     out = []
     for i, ep in enumerate(data):
         if isinstance(ep, Trajectory):
-            obs, act = ep.observations[:-1], ep.actions
+            obs, act = ep.pairs()
         else:
             try:
                 obs, act = ep
@@ -447,6 +450,10 @@ def train(task: str, demos, config: BCConfig = BCConfig(), *, policy=None,
         if config.val_fraction:
             raise LearnerInputError("stop_on_others trains on every demonstration: set "
                                     "val_fraction=0")
+        if getattr(demos, "subsampled", False):
+            raise LearnerInputError("stop_on_others stops on the task's other demonstrations, "
+                                    "which are whole: with subsampled demonstrations use "
+                                    "the default split (val_fraction > 0)")
         from dc_lesson.data import store as _store
         given = {t.seed for t in demos.trajectories}
         variant = demos.manifest.get("variant") if hasattr(demos, "manifest") else None

@@ -329,6 +329,15 @@ def state_log_density(flow: _softflow.SoftFlow, states: torch.Tensor) -> torch.T
 expert_pairs = _bc.pairs   # all (state, action) pairs of the demonstrations, as tensors
 
 
+def expert_states(demos: Demonstrations) -> torch.Tensor:
+    """The expert states P_w is fitted on: every observation of each whole demonstration
+    (its last too, which no action follows); of a subsampled one (``data.subsample``) the
+    kept steps' states only, since the protocol shows the learner no others."""
+    return torch.from_numpy(np.concatenate([t.observations if t.kept is None
+                                            else t.observations[t.kept]
+                                            for t in demos.trajectories]))
+
+
 def train(task: str, demos: Demonstrations, config: DCConfig = DCConfig(), *,
           policy: GaussianPolicy | None = None, progress: bool = True, checkpoint=None,
           callback: Callable | None = None, checkpoint_every: int = 25,
@@ -420,10 +429,10 @@ def _setup(task, demos, config: DCConfig, policy) -> _Run:
     # ppo.terminate: a training-only termination (hopper-fall; None in the presets)
     envs = EnvBatch(task, config.n_envs, env_seed, None, config.ppo.terminate)
     expert_obs, expert_act = expert_pairs(demos)
-    expert_states = torch.from_numpy(np.concatenate([t.observations for t in demos.trajectories]))
-    disc = (_dc_disc.DiscriminatorReward(expert_states, spec.obs_dim, flow_seed)
+    e_states = expert_states(demos)
+    disc = (_dc_disc.DiscriminatorReward(e_states, spec.obs_dim, flow_seed)
             if config.reward == "gail" else None)
-    return _Run(task, config, learner, generator, envs, expert_obs, expert_act, expert_states,
+    return _Run(task, config, learner, generator, envs, expert_obs, expert_act, e_states,
                 dataclasses.replace(config.flow_config(), seed=flow_seed), disc)
 
 
@@ -555,5 +564,5 @@ def _resume(run: _Run, path) -> int:
 
 __all__ = ["CHECKPOINT_FORMAT", "CHECKPOINT_VERSION", "DCConfig", "DC_DEFAULTS", "Learner",
            "RewardScale", "STORED_NUMERICS", "average_into", "consensus_admm", "copy_into",
-           "expert_pairs", "flat", "make_learner", "parameter_averaging", "policy_parameters",
-           "preset", "sample_bc_pairs", "state_log_density", "train"]
+           "expert_pairs", "expert_states", "flat", "make_learner", "parameter_averaging",
+           "policy_parameters", "preset", "sample_bc_pairs", "state_log_density", "train"]

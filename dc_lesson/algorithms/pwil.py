@@ -78,7 +78,7 @@ from dc_lesson.algorithms import _reward_ppo
 from dc_lesson.algorithms import bc as _bc
 from dc_lesson.algorithms import ppo as _ppo
 from dc_lesson.algorithms import base as _base
-from dc_lesson.algorithms.base import TrainResult, check_inputs
+from dc_lesson.algorithms.base import LearnerInputError, TrainResult, check_inputs
 from dc_lesson.nn.policies import ACTION_HIGH, ACTION_LOW, GaussianPolicy
 
 
@@ -207,7 +207,14 @@ class Rewarder:
 
 def expert_atoms(demos, config: PWILConfig, seed: int):
     """(atoms standardised, mean, std) from every ``subsampling``-th pair of each
-    demonstration, from an offset drawn per demonstration."""
+    demonstration, from an offset drawn per demonstration.  Demonstrations subsampled
+    already (``data.subsample``) are refused unless ``subsampling`` is 1: PWIL's own
+    subsampling would thin their kept pairs a second time."""
+    if getattr(demos, "subsampled", False) and config.subsampling != 1:
+        raise LearnerInputError(
+            f"these demonstrations are subsampled already ({demos.manifest.get('subsample')}); "
+            f"PWIL's own subsampling of {config.subsampling} would keep every "
+            f"{config.subsampling}th of their kept pairs: set PWILConfig(subsampling=1)")
     rng = np.random.default_rng(seed)
     parts = []
     for obs, act in _bc.episodes(demos):

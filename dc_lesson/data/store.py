@@ -60,6 +60,10 @@ def save_demos(trajectories: list[Trajectory], path) -> str:
     if any(t.task != task for t in trajectories):
         raise ValueError(f"all trajectories in a demonstration file must be of one task; those "
                          f"for {path} are of {sorted({t.task for t in trajectories})}")
+    if any(t.subsampled for t in trajectories):
+        raise ValueError(f"subsampled demonstrations are a view of whole ones (their kept "
+                         f"steps are not stored): save the whole trajectories (t.whole()), "
+                         f"not these, to {path}")
     if len({len(t) for t in trajectories}) != 1:
         raise ValueError(f"demonstrations must all have the same length (the horizon); those "
                          f"for {path} have lengths {sorted({len(t) for t in trajectories})}")

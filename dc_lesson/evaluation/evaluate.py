@@ -49,6 +49,8 @@ def measure(task: str, trajectories, reference: _data.Demonstrations | None,
     ``reference`` (None) only the returns and mode shares, the divergences None.
     ``variant``: scale the return by that expert variant's manifest entry."""
     trajectories = list(trajectories)
+    if isinstance(reference, _data.Demonstrations):
+        reference = reference.whole()   # every step of the expert's episodes, subsampled or not
     scaled, _ = _metrics.scaled_return(task, trajectories, variant=variant)
     returns = _rollout.returns(trajectories)
     out = {"scaled_return": scaled, "return": float(returns.mean()),
