@@ -265,3 +265,18 @@ def test_each_learner_s_own_fixes_reach_its_config_and_its_cells():
         cell = next(c for c in studies.get("competence").grid(b) if c.learner == learner)
         text = json.dumps(cell.config, sort_keys=True)
         assert all(json.dumps(k.split(".")[-1]) in text for k in fixes)   # part of its identity
+
+
+def test_the_aggregate_reads_a_record_s_wall_clock_from_its_timing():
+    # a sweep record keeps wall-clock figures apart from the numbers (cells.split_timing)
+    b = budget.get("smoke")
+    cell = studies.get("competence").grid(b)[0]
+    point = {"scaled_return": 1.0}
+    rec = {"cell": {"learner": cell.learner, "task": cell.task, "seed": cell.seed,
+                    "variant": cell.variant},
+           "result": {"start": point, "final": point,
+                      "curve": [{"steps": 1024, "scaled_return": 1.0}]},
+           "timing": {"train_seconds": 12.5}}
+    agg = comp.aggregate([rec], b)
+    assert agg["observations"][0]["train_seconds"] == 12.5
+    assert agg["observations"][0]["curve_steps"] == [1024]
