@@ -421,8 +421,11 @@ if t1 is not None:
 # fall that ends a training episode, which its expert trained with. Where a probe showed a
 # learner needed more, the setting is a named field of its config, printed below with the
 # study's other rules (the study's module lists what each probe measured). A learner
-# that fails is kept in the tables, marked, and every verdict that would use it as a
-# comparator says "not judged: failed the competence gate". The gate reads the cells on
+# that fails is kept in the tables and marked. Every verdict of the book reads this gate
+# (`dc_lesson.experiments.competence.mapping`): a comparison with a learner that failed, or
+# that has not yet shown competence, is "not judged" with the reason, on whichever side of
+# the comparison it stands, DC's own included, because until then the comparison would
+# describe our implementation, not the paper's algorithm. The gate reads the cells on
 # record, so while the study accumulates a part that has not run says so rather than
 # passing.
 
@@ -449,6 +452,10 @@ else:
     gate_rows = pd.DataFrame([r for r in competence_report.rows(gate_record) if r["seeds"]])
     display(gate_rows.round(2).set_index(["learner", "part", "task"]))
     display(Markdown(competence_report.sentence(gate_record)))
+held_back = competence_report.mapping()
+display(Markdown("What every verdict of the book reads from it today:\n\n" + "\n".join(
+    f"* {competence_report.NAMES[k]} {why}" for k, why in held_back.items())
+    if held_back else "Every learner has passed: every verdict of the book may judge."))
 
 # %% [markdown]
 # Each learner's mean-action checkpoint curve, the mean over the seeds on record with its 95%

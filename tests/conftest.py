@@ -16,3 +16,11 @@ def one_thread():
     torch.set_num_threads(1)
     yield
     torch.set_num_threads(n)
+
+
+@pytest.fixture
+def judge_every_learner(monkeypatch):
+    """Verdict rules on constructed records: no learner is held back by the stored competence
+    gate (its rules and its reach are tested in test_competence.py)."""
+    from dc_lesson.experiments import competence
+    monkeypatch.setattr(competence, "mapping", lambda rec=None: {})

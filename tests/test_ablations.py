@@ -121,6 +121,7 @@ def test_the_worst_rate_needs_every_rate_of_the_seed():
     assert worst == [{"task": "hopper", "seed": 0, "row": "dc", "worst_lr_return": 0.2}]
 
 
+@pytest.mark.usefixtures("judge_every_learner")
 def test_each_ablation_claim_can_be_reproduced_contradicted_or_left_open():
     rng = np.random.default_rng(0)
     seeds = range(6)
@@ -143,6 +144,7 @@ def test_each_ablation_claim_can_be_reproduced_contradicted_or_left_open():
     assert got[claims.LONG_LOOP.name] == "reproduced"   # comparable: the ceiling leaves it open
 
 
+@pytest.mark.usefixtures("judge_every_learner")
 def test_figure_5_and_6_claims_compare_the_default_rates_and_the_copies_gap():
     seeds = range(5)
     dc_c, gail_c = [0.9, 0.95, 1.0, 1.0, 1.0, 1.0], [0.5, 0.3, 0.6, 0.2, 0.9, 0.1]

@@ -72,6 +72,7 @@ def _mode_obs(gail_top, seeds=10):
     return out
 
 
+@pytest.mark.usefixtures("judge_every_learner")
 def test_mode_claims_are_judged_per_seed_beside_the_bc_start():
     collapsed = _mode_obs(0.95)
     v = claims.verdicts(collapsed, {"r2": {"red": 0.5, "blue": 0.5}})
@@ -147,6 +148,7 @@ def test_chapter_1s_growth_verdict_reads_the_per_seed_differences():
     assert v.verdict.startswith("reproduced on 1 of 3 tasks")
 
 
+@pytest.mark.usefixtures("judge_every_learner")
 def test_the_hidden_coin_collapse_is_gail_coin_against_its_own_start():
     def o(row, seed, share):
         return {"task": "reacher2", "row": row, "seed": seed, "n_demos": 18,

@@ -51,9 +51,16 @@ def test_the_gate_is_one_word_per_learner_with_its_reasons():
     g = comp.gate(good + bad)
     assert g["gail"] == {"passed": True, "reason": ""}
     assert g["ndi"]["passed"] is False and "keep on cartpole" in g["ndi"]["reason"]
-    assert g["dc"]["passed"] is False and "no runs" in g["dc"]["reason"]
-    mapping = comp.competence({"gate": g})
+    # a learner with no runs has not failed: it has not yet shown competence
+    assert g["dc"]["passed"] is None and "not run yet" in g["dc"]["reason"]
+    # a failure names the failing part only; the open ones wait for it to be fixed
+    half = [o for o in bad if o["part"] == "keep"]
+    assert comp.gate(half)["ndi"] == {"passed": False,
+                                      "reason": "keep on cartpole: ended more than 0.05 below "
+                                                "its start on 10 of 10 seeds"}
+    mapping = comp.competence({"observations": good + bad})
     assert "gail" not in mapping and mapping["ndi"].startswith("failed the competence gate")
+    assert mapping["dc"].startswith("has not yet shown competence — keep on cartpole")
 
 
 def test_a_failed_gate_makes_a_verdict_not_judged():
@@ -280,3 +287,34 @@ def test_the_aggregate_reads_a_record_s_wall_clock_from_its_timing():
     agg = comp.aggregate([rec], b)
     assert agg["observations"][0]["train_seconds"] == 12.5
     assert agg["observations"][0]["curve_steps"] == [1024]
+
+
+def test_the_book_s_verdicts_read_the_stored_gate_by_default(monkeypatch):
+    """Every verdict entry point (here Table I's claims on constructed mode shares) holds back
+    a learner the stored study has not shown competent, and judges it once it passed; with no
+    study on record nothing RL-based is judged."""
+    from dc_lesson.experiments import claims, competence as report
+    shares = {"r2": {"red": 0.5, "blue": 0.5}}
+    obs = []
+    for s in range(10):
+        obs += [{"task": "r2", "seed": s, "row": "bc", "mode_shares": {"red": .5, "blue": .5}},
+                {"task": "r2", "seed": s, "row": "gail", "mode_shares": {"red": 1., "blue": 0.}}]
+    passing = []
+    for task in comp.KEEP_TASKS:
+        passing += _obs("gail", "keep", task, 1.0, 0.99, 10)
+    for task in comp.LEARN_TASKS:
+        passing += _obs("gail", "learn", task, 0.2, 0.9, 5)
+    failing = [dict(o, final=0.1, curve=[0.1]) for o in passing]
+
+    def word(study):
+        monkeypatch.setattr(report, "load", lambda name=report.RESULT: study)
+        v = {x.claim: x for x in claims.verdicts(obs, shares)}[claims.GAIL_COLLAPSES.name]
+        return v.per_task[0][1]
+
+    assert word({"observations": passing}) == "reproduced"
+    assert word({"observations": failing}).startswith(
+        "not judged: gail failed the competence gate — keep on cartpole")
+    assert word(None).startswith("not judged: gail has not yet shown competence — no "
+                                 "competence study on record")
+    # a mapping given explicitly wins over the stored gate ({}: judge every learner)
+    assert claims.verdicts(obs, shares, competence={})[2].per_task[0][1] == "reproduced"

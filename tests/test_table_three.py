@@ -5,6 +5,9 @@ import pytest
 
 from dc_lesson.experiments import table_three as t3
 
+# the rules on constructed records; the stored competence gate's reach: test_competence.py
+pytestmark = pytest.mark.usefixtures("judge_every_learner")
+
 
 def _record(values: dict, task="halfcheetah", n=11):
     rows = [{"task": task, "n_demos": n, "row": r, "n_seeds": 3, "scaled_return_mean": v,
@@ -187,9 +190,10 @@ def test_dc_against_its_start_is_judged_for_comparability_too():
 
 def test_a_failed_competence_gate_is_not_judged_with_its_reason():
     c = t3._claims
-    got = _by(t3.verdicts(_single(0.3, 0.01, 0.2), competence={"gail": "lost its start"}))
+    got = _by(t3.verdicts(_single(0.3, 0.01, 0.2),
+                          competence={"gail": "failed the competence gate — lost its start"}))
     assert got[c.COMPARABLE.name].per_task[0].word == \
-        "not judged: gail failed the competence gate (lost its start)"
+        "not judged: gail failed the competence gate — lost its start"
     assert got[c.DC_BEATS_BC.name].verdict.startswith("reproduced")
 
 

@@ -3,8 +3,12 @@ lines and the one-paragraph conclusion, each rule on constructed aggregates (a w
 a swapped side or a lost not-judged group changes what is asserted here)."""
 
 import numpy as np
+import pytest
 
 from dc_lesson.experiments import claims, table_three as t3, table_three_words as w
+
+# the rules on constructed records; the stored competence gate's reach: test_competence.py
+pytestmark = pytest.mark.usefixtures("judge_every_learner")
 
 
 def _rec(starts: dict, dc_minus_bc: dict, dc_minus_gail: float = 0.0, n_seeds=6, noise=0.005):
@@ -68,3 +72,13 @@ def test_the_summary_puts_the_reason_beside_the_word():
                     "judged: fewer than 5 paired seeds on cartpole (4); not judged: start at "
                     "the ceiling on hopper (4).")
     assert len(w.lines(rec)) == len(t3.CLAIMS) - 1     # one count: no growth to judge
+
+
+def test_a_benchmark_held_back_by_the_gate_says_why_not_that_seeds_are_missing():
+    rec = _rec({("reacher1", 4): 0.5, ("hopper", 4): 0.6}, {("reacher1", 4): 0.2})
+    vs = t3.verdicts(rec, competence={"dc": "failed the competence gate — keep on hopper: a "
+                                            "checkpoint fell 0.84 below its start"})
+    text = w.conclusion(rec, vs)
+    assert text.startswith("No (task, demonstration count) pair is judged: dc failed the "
+                           "competence gate — keep on hopper")
+    assert "paired seeds" not in text and "implementations" in text

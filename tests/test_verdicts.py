@@ -122,8 +122,9 @@ def test_not_judged_gates_and_their_reasons():
                      "zero": "not judged: start at the floor"}
     assert got.verdict == ("reproduced; not judged on top (start at the ceiling); zero "
                            "(start at the floor)")
-    gated = v.judge_claim(CLAIM, obs, competence={"bc": "lost its start's return"})
-    assert all(e[1] == "not judged: bc failed the competence gate (lost its start's return)"
+    gated = v.judge_claim(CLAIM, obs, competence={"bc": "failed the competence gate — lost "
+                                                        "its start's return"})
+    assert all(e[1] == "not judged: bc failed the competence gate — lost its start's return"
                for e in gated.per_task)
     # divergences are not gated by the start's return
     assert not v.Claim("x", "s", "emd", "dc", "bc", -1, "r").gated
@@ -210,3 +211,13 @@ def test_welch_matches_scipy_and_decides_in_the_one_vocabulary():
     assert v.word_unpaired(base + 0.02, base, "scaled_return", +1) == "equal within 0.05"
     assert v.word_unpaired(base[:4], base, "scaled_return", +1) == \
         "not judged: fewer than 5 seeds on a side"
+
+
+def test_evidence_prints_a_bounded_difference_clipped_but_decides_unclipped():
+    c = v.Claim("x", "s", "largest_share", "gail", "bc", 1, "r")
+    e = v.Entry("t", v.REPRODUCED, 0.95, 0.80, 1.10, 5, 0.01, 0.05)
+    text = v.evidence(c, [e])
+    assert "[+0.800, +1.000]" in text and "1.100" not in text
+    # a measure without limits prints its interval as computed
+    free = v.evidence(v.Claim("x", "s", "scaled_return", "dc", "bc", 1, "r"), [e])
+    assert "[+0.800, +1.100]" in free

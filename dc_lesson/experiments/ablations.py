@@ -135,17 +135,18 @@ def at_default_lr(obs) -> list[dict]:
     return out
 
 
-def book_verdicts(actions: str = "mean", competence: dict | None = None) -> list:
+def book_verdicts(actions: str = "mean", competence: dict | str | None = "stored") -> list:
     """Table I's claims on the stored aggregate (:func:`claims.verdicts`) followed by the
     hopper ablations' (:func:`verdicts`): every stored verdict of chapters 04 and 06."""
     return (_claims.verdicts(actions=actions, competence=competence)
             + verdicts(competence=competence))
 
 
-def verdicts(recs: dict | None = None, competence: dict | None = None) -> list:
+def verdicts(recs: dict | None = None, competence: dict | str | None = "stored") -> list:
     """Each claim of :data:`claims.ABLATIONS`, judged on the stored aggregates (or ``recs``);
     one task, so each is its own family."""
     c = _claims
+    competence = _claims.competence_of(competence)
     recs = load() if recs is None else recs
     obs = observations(recs)
     judge = lambda claim, o, **kw: _verdicts.judge_claim(claim, o, [TASK], competence=competence,

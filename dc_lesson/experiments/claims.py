@@ -210,26 +210,32 @@ def _mode_evidence(obs, task_rows, reference_shares, n_episodes: int) -> str:
     return "; ".join(parts)
 
 
-def bc_growth(rec: dict, competence: dict | None = None) -> Verdict:
+def competence_of(competence):
+    """``competence`` of an entry point: ``"stored"`` (the default) reads the stored gate."""
+    from dc_lesson.experiments import competence as _competence   # lazy: it imports learners
+    return _competence.resolve(competence)
+
+
+def bc_growth(rec: dict, competence: dict | str | None = "stored") -> Verdict:
     """:data:`BC_GROWS` judged on the ``bc_demos`` aggregate's per-seed differences (one
     family over its tasks; the start's level is BC's at the fewest demonstrations)."""
     fewest = {r["task"]: r["scaled_return_mean"] for r in rec.get("summary", [])
               if r["n_demos"] == min(rec["demo_counts"]) and "scaled_return_mean" in r}
     members = [(p["task"], np.asarray(p["scaled_return_diffs"]), fewest.get(p["task"]), None)
                for p in rec["paired"] if p.get("scaled_return_diffs") is not None]
-    entries = _v.judge_family(BC_GROWS, members, competence)
+    entries = _v.judge_family(BC_GROWS, members, competence_of(competence))
     return Verdict(BC_GROWS.name, BC_GROWS.source, BC_GROWS.rule, count(entries),
                    _v.evidence(BC_GROWS, entries), BC_GROWS.reason, entries)
 
 
-def hidden_coin_collapse(t1: dict) -> Verdict | None:
+def hidden_coin_collapse(t1: dict, competence: dict | str | None = "stored") -> Verdict | None:
     """Chapter 2's :data:`GAIL_COLLAPSES` on the hidden-coin demonstrations (Table I's
     ``gail-coin`` against its own start ``bc-coin``, mean action); None before they ran."""
     coin = [o for o in t1["mean"]["observations"] if o["row"] in ("bc-coin", "gail-coin")]
     if not any(o["row"] == "gail-coin" for o in coin):
         return None
     return judge_claim(dataclasses.replace(GAIL_COLLAPSES, a="gail-coin", b="bc-coin"), coin,
-                       measure=largest_share)
+                       measure=largest_share, competence=competence_of(competence))
 
 
 def floors(rec: dict | None, actions: str = "mean") -> dict:
@@ -242,7 +248,7 @@ def floors(rec: dict | None, actions: str = "mean") -> dict:
 
 
 def verdicts(obs=None, reference_shares=None, source: str = "", eval_episodes: int = 50,
-             actions: str = "mean", competence: dict | None = None,
+             actions: str = "mean", competence: dict | str | None = "stored",
              floor: dict | None = None) -> list[Verdict]:
     """Table I's four claims (:data:`TABLE_ONE`), judged; from the stored ``table1``
     aggregate (its ``actions`` evaluation) by default, or on ``obs``.  The hopper ablations'
@@ -257,7 +263,7 @@ def verdicts(obs=None, reference_shares=None, source: str = "", eval_episodes: i
             eval_episodes, floor = rec["protocol"]["eval_episodes"], floors(rec, actions)
     reference_shares = reference_shares or {}
     multi = list(dict.fromkeys(o["task"] for o in obs))
-    kw = dict(competence=competence, floors=floor)
+    kw = dict(competence=competence_of(competence), floors=floor)
     out = []
     for claim in (LOWEST_DIVERGENCE, HIGHER_RETURN):
         v = judge_claim(claim, obs, multi, note=source, **kw)
@@ -273,7 +279,7 @@ def verdicts(obs=None, reference_shares=None, source: str = "", eval_episodes: i
     return out
 
 
-__all__ = ["ABLATIONS", "BC_GROWS", "BC_IMPROVES", "CLAIMS", "COLLAPSE_SHARE", "COMPARABLE",
+__all__ = ["ABLATIONS", "BC_GROWS", "BC_IMPROVES", "CLAIMS", "COLLAPSE_SHARE", "COMPARABLE", "competence_of",
            "COMPARABLE_BC", "CONVERGES", "DC_BEATS_BC", "DC_BEATS_DRIL_FEW", "DC_FASTER",
            "DC_KEEPS_MODES", "DC_STABLE", "EQUAL_BUDGET", "FASTER", "GAIL_COLLAPSES",
            "GPRIL_LOWEST", "HIGHER_RETURN", "LONG_LOOP", "LOOPS", "LOWEST_DIVERGENCE",

@@ -26,6 +26,28 @@ def load(name: str = RESULT) -> dict | None:
     return report.stored(name)
 
 
+STORED = "stored"    # the default of every verdict entry point: read the stored gate
+
+
+def mapping(rec: dict | None = None) -> dict[str, str]:
+    """The gate as verdicts read it: learner -> the phrase after its name in a "not judged"
+    verdict, for every learner of the study that has not passed ("failed the competence gate
+    — why" or "has not yet shown competence — why").  From the stored aggregate (``rec``
+    None), re-judged by today's rules; with no aggregate on record no learner has shown
+    competence, so none is judged."""
+    rec = load() if rec is None else rec
+    if rec is None:
+        return {k: "has not yet shown competence — no competence study on record ("
+                   "dc-lesson sweep competence)" for k in _study.LEARNERS}
+    return _study.competence(rec)
+
+
+def resolve(competence) -> dict[str, str] | None:
+    """A verdict entry point's ``competence`` argument: :data:`STORED` -> :func:`mapping`;
+    a mapping (``{}``: judge every learner, for rules on constructed records) as given."""
+    return mapping() if competence == STORED else competence
+
+
 def status(rec: dict) -> str:
     """``N of M cells (complete|still accumulating), budget, interactions, CPU-hours``."""
     c = rec["cells"]
@@ -133,12 +155,13 @@ def sentence(rec: dict) -> str:
     if passed:
         parts.append("passed the whole gate: " + ", ".join(passed))
     if failed:
-        parts.append("failed a part already run (no verdict of the book uses them as a "
-                     "comparator): " + ", ".join(failed))
+        parts.append("failed a part already run (no verdict of the book judges a "
+                     "comparison with them): " + ", ".join(failed))
     if pending:
-        parts.append("not yet shown, with parts still to run: " + ", ".join(pending))
+        parts.append("not yet shown, with parts still to run (not judged either until "
+                     "they pass): " + ", ".join(pending))
     return "On the cells on record, " + "; ".join(parts) + "."
 
 
-__all__ = ["NAMES", "RESULT", "curves", "gate_words", "load", "overview", "rows", "sentence",
+__all__ = ["NAMES", "RESULT", "STORED", "curves", "mapping", "resolve", "gate_words", "load", "overview", "rows", "sentence",
            "status"]

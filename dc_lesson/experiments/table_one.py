@@ -151,14 +151,19 @@ def paired(rec: dict, a: str, b: str, task: str, actions: str = "mean") -> dict 
 
 def word(entry: dict | None, measure: str, rec: dict | None = None,
          actions: str = "mean", direction: int | None = None,
-         floor: float | None = None) -> str:
+         floor: float | None = None, competence: dict | str | None = "stored") -> str:
     """The control rule (module docstring) on one paired entry alone: is ``a`` better than
     ``b`` on ``measure``?  ``rec``: the aggregate whose expert rows bound the divergences;
     ``direction``: the sign of ``a - b`` that counts as better, for a measure
     ``verdicts.BETTER`` does not know (+1: higher); ``floor``: a divergence's expert-vs-expert
-    value when ``rec`` is not a Table I aggregate."""
+    value when ``rec`` is not a Table I aggregate; ``competence``: the stored gate by default
+    (a row whose learner has not shown competence is not judged)."""
     if not entry or f"{measure}_diffs" not in entry:
         return f"{_verdicts.NOT_JUDGED}: not run yet"
+    why = _verdicts.rows_gate((entry.get("a", ""), entry.get("b", "")),
+                              claims.competence_of(competence))
+    if why:
+        return f"{_verdicts.NOT_JUDGED}: {why}"
     if floor is None:
         floor = claims.floors(rec, actions).get(entry["task"], {}).get(measure)
     return _verdicts.word_of_diffs(entry[f"{measure}_diffs"], measure,
@@ -181,15 +186,17 @@ def said(entry: dict | None, measure: str, rec: dict | None = None,
     return f"{_verdicts.fmt_num(t.mean)}{band}, *{w}*{side}"
 
 
-def controls(rec: dict, actions: str = "mean") -> list[dict]:
+def controls(rec: dict, actions: str = "mean",
+             competence: dict | str | None = "stored") -> list[dict]:
     """Every control on every task: the question, ``a - b`` with its interval, the word
     (Holm across the control's tasks) and, beside it, the reason it is not judged."""
-    out, floor = [], claims.floors(rec, actions)
+    out, floor, gate = [], claims.floors(rec, actions), claims.competence_of(competence)
     for a, b, measure, question in CONTROLS:
         c = _verdicts.Claim(question, "control", measure, a, b, _verdicts.BETTER[measure],
                             question, start=None)
         got = {e.key: e for e in _verdicts.judge_claim(c, rec[actions]["observations"],
-                                                       TASKS, floors=floor).per_task}
+                                                       TASKS, floors=floor,
+                                                       competence=gate).per_task}
         for task in TASKS:
             e = got.get(task)
             w = e.word if e else f"{_verdicts.NOT_JUDGED}: not run yet"

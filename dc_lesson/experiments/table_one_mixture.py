@@ -57,11 +57,16 @@ def table(rec: dict, actions: str = "mean", digits: int = 3) -> list[dict]:
 
 
 def verdict(entry: dict | None, measure: str, direction: int, rec: dict | None = None,
-            actions: str = "mean") -> str:
+            actions: str = "mean", competence: dict | str | None = "stored") -> str:
     """The word for "the mixture row ``a`` of a paired entry is better" by the measure's
-    direction (the rule of :mod:`verdicts`, on its own: no family)."""
+    direction (the rule of :mod:`verdicts`, on its own: no family); not judged while a row's
+    learner has not shown competence (the stored gate by default)."""
     if not entry or f"{measure}_diffs" not in entry:
         return f"{_verdicts.NOT_JUDGED}: not run yet"
+    why = _verdicts.rows_gate((entry.get("a", ""), entry.get("b", "")),
+                              claims.competence_of(competence))
+    if why:
+        return f"{_verdicts.NOT_JUDGED}: {why}"
     floor = claims.floors(rec, actions).get(entry["task"], {}).get(measure)  # divergences
     return _verdicts.word_of_diffs(entry[f"{measure}_diffs"], measure, direction, floor)
 

@@ -34,7 +34,7 @@ from __future__ import annotations
 
 from dc_lesson.experiments.report import fmt_entry
 from dc_lesson.experiments.table_one import TASKS, fmt_tv, paired, tv_band
-from dc_lesson.experiments import verdicts as V
+from dc_lesson.experiments import claims, verdicts as V
 from dc_lesson.experiments.table_one_mixture import count_words, verdict
 
 BEST_BC = "best-bc"       # the stand-in name of the better-trained BC, resolved per task
@@ -85,17 +85,18 @@ def against(rec: dict, actions: str = "mean") -> dict:
     return out
 
 
-def floor(rec: dict, actions: str = "mean") -> dict:
+def floor(rec: dict, actions: str = "mean", competence: dict | str | None = "stored") -> dict:
     """``{task: (word, dc's (mean, lo, hi), the expert's)}`` for the tasks where both ran: the
     word of :func:`verdicts.word_unpaired` for "DC's mode TV is lower than the expert's own"
     on their per-seed mode TVs (unpaired), beside each side's t interval
     (:func:`table_one.tv_band`); ``not judged`` when the aggregate has no per-seed values."""
-    out = {}
+    out, gate = {}, V.rows_gate(("dc",), claims.competence_of(competence))
     for task in TASKS:
         dc, ex = _tv(rec, task, "dc", actions), _tv(rec, task, "expert", actions)
         if not dc or not ex:
             continue
-        word = (V.word_unpaired(dc["tv"], ex["tv"], "mode_tv", -1) if dc.get("tv") and
+        word = (f"{V.NOT_JUDGED}: {gate}" if gate else
+                V.word_unpaired(dc["tv"], ex["tv"], "mode_tv", -1) if dc.get("tv") and
                 ex.get("tv") else f"{V.NOT_JUDGED}: no per-seed mode TVs")
         out[task] = (word, tv_band(dc), tv_band(ex))
     return out
@@ -143,37 +144,37 @@ def lines(rec: dict, actions: str = "mean") -> list[str]:
     return out
 
 
-def mechanism(rec: dict, actions: str = "mean") -> str:
-    """What DC's parts do to the mode TV, by a fixed rule on :func:`against`: its PPO step
-    against BC continuation (``dc-noppo``) and the SoftFlow density against a discriminator
+def _held_back(competence) -> str | None:
+    """Why DC's mode comparisons are not judged (its learner not shown competent), or None."""
+    return V.rows_gate(("dc",), claims.competence_of(competence))
+
+
+def mechanism(rec: dict, actions: str = "mean", competence: dict | str | None = "stored") -> str:
+    """What DC's parts do to the mode TV, in the verdict vocabulary (:func:`against`): its
+    PPO step against BC continuation (``dc-noppo``) and the SoftFlow density against a discriminator
     (``dc-gailreward``).  The toy predicts the RL step alone keeps no modes; the sentence says
-    whether the grid agrees, and whether the density in particular is what helps."""
+    whether the grid agrees, and whether the density in particular is what helps; nothing
+    while DC has not shown competence (every comparison here is DC against a part of it)."""
+    why = _held_back(competence)
+    if why:
+        return f"Under the {actions} action, what DC's parts do to the mode TV is " \
+               f"{V.NOT_JUDGED}: {why}."
     a = against(rec, actions)
-    rl_better, rl_worse = _tasks(a["dc-noppo"], V.REPRODUCED), _tasks(a["dc-noppo"], V.CONTRADICTED)
+    rl_better = _tasks(a["dc-noppo"], V.REPRODUCED)
     d_better, d_worse = (_tasks(a["dc-gailreward"], V.REPRODUCED),
                          _tasks(a["dc-gailreward"], V.CONTRADICTED))
     judged = [t for t, (_, v, _) in a["dc-gailreward"].items()
               if V.kind(v) != V.NOT_JUDGED]
-    if rl_better:
-        s = f"DC's PPO step lowers the mode TV against BC continuation on {_n(rl_better)}"
-        low = [t for t in rl_better if _none(rec, t, "dc-noppo", actions) >= LOW_BAR]
-        if low:
-            s += (f" (a low bar on {', '.join(low)}, where BC continuation's episodes mostly "
-                  f"arrive nowhere)")
-    elif rl_worse:
-        s = f"DC's PPO step raises the mode TV against BC continuation on {_n(rl_worse)}"
-    else:
-        s = "DC's PPO step changes the mode TV detectably on no task"
-    if d_better:
-        s += f"; the SoftFlow density beats a discriminator reward there on {_n(d_better)}"
-    elif d_worse:
-        s += f"; a discriminator reward in its place keeps more modes on {_n(d_worse)}"
-    elif judged:
-        s += ("; a discriminator reward in place of the SoftFlow density changes nothing "
-              "detectable on " + _n(judged))
-        if rl_better:
-            s += (", so what helps is the RL step on a learned reward, not the density in "
-                  "particular")
+    s = ("*DC's PPO step keeps more modes than BC continuation* (DC's mode TV below "
+         f"`dc-noppo`'s): {_words(a['dc-noppo'])}")
+    low = [t for t in rl_better if _none(rec, t, "dc-noppo", actions) >= LOW_BAR]
+    if low:
+        s += (f" (a low bar on {', '.join(low)}, where BC continuation's episodes mostly "
+              f"arrive nowhere)")
+    s += ("; *the SoftFlow density keeps more modes than a discriminator reward in its "
+          f"place* (below `dc-gailreward`'s): {_words(a['dc-gailreward'])}")
+    if rl_better and judged and not d_better and not d_worse:
+        s += ", so what helps is the RL step on a learned reward, not the density in particular"
     return f"Under the {actions} action: {s}."
 
 
@@ -185,7 +186,7 @@ def _n(tasks: list[str]) -> str:
     return f"{len(tasks)} of {len(TASKS)} tasks: {', '.join(tasks)}"
 
 
-def conclusion(rec: dict, actions: str = "mean") -> str:
+def conclusion(rec: dict, actions: str = "mean", competence: dict | str | None = "stored") -> str:
     """The answer in a sentence and its evidence, in :mod:`verdicts`' words for the claim "DC keeps more of
     the expert's modes" (its mode TV is lower), by a fixed rule on :func:`against` and
     :func:`floor`.  The head, first that applies:
@@ -200,8 +201,14 @@ def conclusion(rec: dict, actions: str = "mean") -> str:
     * otherwise *reproduced against its start on no task*.
 
     Then each comparator's words per task (:func:`_words`): its start (a low bar flagged),
-    the better-trained BC, and the expert scored like a learner (unpaired).
+    the better-trained BC, and the expert scored like a learner (unpaired).  While DC has
+    not shown competence (the stored gate by default) the sentence says only that.
     """
+    why = _held_back(competence)
+    if why:
+        return (f"Under the {actions} action, *DC keeps more of the expert's modes* is "
+                f"{V.NOT_JUDGED}: {why}. The mode TVs above are our implementation's, shown "
+                f"but not judged.")
     a = against(rec, actions)
     start, best = a["bc"], a[BEST_BC]
     s_rep, s_con = _tasks(start, V.REPRODUCED), _tasks(start, V.CONTRADICTED)

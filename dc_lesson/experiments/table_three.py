@@ -238,11 +238,13 @@ def _curve_spread(o) -> float | None:
     return _ablations.late_spread({"eval_curve": o.get("curve")})
 
 
-def verdicts(rec: dict, competence: dict | None = None) -> list:
+def verdicts(rec: dict, competence: dict | str | None = "stored") -> list:
     """Each claim of :data:`CLAIMS` (a :class:`verdicts.Verdict`), judged over the (task,
     count) pairs that have run: DRIL's and the curves' at the fewest demonstrations only,
     BC's growth once per task (fewest against most, keyed ``"F -> M"``).  ``competence``:
-    learner -> why it failed its competence gate (those comparisons are not judged)."""
+    the stored competence gate by default (:func:`competence.mapping`: a learner not shown
+    competent is not judged), or a mapping learner -> phrase, ``{}`` for none."""
+    competence = _claims.competence_of(competence)
     obs = [{**o, "curve_mean": _curve_mean(o), "curve_spread": _curve_spread(o)}
            for o in _common_curves([o for o in rec["observations"] if o["row"] != "expert"])]
     obs += _lowest_other(obs)

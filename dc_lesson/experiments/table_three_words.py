@@ -96,7 +96,9 @@ def conclusion(rec: dict, vs: list | None = None) -> str:
     * at the ceiling: on how many pairs DC keeps the start's return (*equal within*), loses
       more than the bound (*contradicted*), or cannot be told;
     * at the floor: that no learner has anything to start from;
-    * with no pair judged: no answer yet.
+    * with no pair judged because a learner has not shown competence: that, with the gate's
+      reason (chapter 5's study), since the numbers then describe our implementation;
+    * with no pair judged otherwise: no answer yet.
     """
     vs = vs if vs is not None else table_three.verdicts(rec)
     by = {v.claim: v for v in vs}
@@ -108,6 +110,13 @@ def conclusion(rec: dict, vs: list | None = None) -> str:
     room = sorted(k for k, w in beats.items() if w != V.NOT_JUDGED)
     ceil = sorted(k for k in keeps if levels.get(k) == CEILING and keeps[k] != V.NOT_JUDGED)
     floor = sorted(k for k in beats if levels.get(k) == FLOOR)
+    gated = sorted({e.word.split(": ", 1)[1] for e in by[claims.DC_BEATS_BC.name].per_task
+                    if V.kind(e.word) == V.NOT_JUDGED and "competence" in e.word})
+    if not room and not ceil and gated:
+        return ("No (task, demonstration count) pair is judged: " + "; ".join(gated) +
+                ". Until the learners compared have shown competence (chapter 5), the table's "
+                "numbers describe our implementations, not the paper's algorithms, and the "
+                "benchmark gives no answer.")
     if not room and not ceil:
         return (f"No (task, demonstration count) pair has {V.MIN_SEEDS} paired seeds of DC "
                 f"and its start away from the floor yet, so the benchmark cannot answer yet.")

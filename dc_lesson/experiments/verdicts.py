@@ -24,8 +24,9 @@ expert-vs-expert floor on the task (two samples of the expert differ by that muc
 * *equal within B*: the whole 95% interval lies inside +-B (B the smallest effect: TOST at
   2.5% each side, Holm-adjusted); this is what a "comparable" claim asks for;
 * *inconclusive*: neither;
-* *not judged: reason*: fewer than :data:`MIN_SEEDS` paired seeds, a row that failed a
-  competence gate (an optional ``competence`` mapping learner -> reason), or, on a return
+* *not judged: reason*: fewer than :data:`MIN_SEEDS` paired seeds, a row whose learner has
+  not passed the competence gate (an optional ``competence`` mapping learner -> phrase; the
+  book's entry points read the stored gate, :mod:`dc_lesson.experiments.competence`), or, on a return
   measure, a start at the ceiling (within :data:`LEVEL_GAP` of the expert's 1) or at the
   floor (within it of random's 0), where the comparison cannot show what the claim asks.
 
@@ -203,7 +204,7 @@ class Claim:
                 f"across the claim's tasks; {what} (p < {ALPHA}, mean beyond the smallest "
                 f"effect {bound_for(self.measure)}{' or the expert floor' if self.measure in DIVERGENCES else ''}); "
                 f"equal within it if the 95% interval lies inside it; not judged with fewer "
-                f"than {MIN_SEEDS} seeds, a failed competence gate"
+                f"than {MIN_SEEDS} seeds, a learner not shown competent"
                 + (", or a start at the ceiling or floor" if self.gated else ""))
 
     @property
@@ -253,10 +254,20 @@ def start_gate(level: float | None, gates=(CEILING, FLOOR)) -> str | None:
 
 
 def competence_gate(claim: Claim, competence: dict | None) -> str | None:
-    for row in (claim.b, claim.a):
+    """Why ``claim`` is not judged for its rows' competence, or None.  ``competence`` maps a
+    learner (``"gail"``; a row ``"gail-coin"`` or ``"dc@lr"`` is its learner's) to the phrase
+    that follows its name: ``"failed the competence gate — why"``, ``"has not yet shown
+    competence — why"`` (:func:`dc_lesson.experiments.competence.mapping`)."""
+    return rows_gate((claim.b, claim.a), competence)
+
+
+def rows_gate(rows, competence: dict | None) -> str | None:
+    """:func:`competence_gate` for a comparison given by its rows (a paired entry's ``a`` and
+    ``b``): the first row whose learner is in ``competence``, with its phrase."""
+    for row in rows:
         for name in (row, row.split("-")[0].split("@")[0].split(" ")[0]):
             if competence and name in competence:
-                return f"{row} failed the competence gate ({competence[name]})"
+                return f"{row} {competence[name]}"
     return None
 
 
@@ -314,9 +325,15 @@ def count(entries, unit: str = "tasks") -> str:
 
 
 def evidence(claim: Claim, entries, note: str = "") -> str:
+    """Each entry's difference, interval, seeds, Holm p and word.  A difference of a bounded
+    measure prints its interval clipped to the difference's limits (``report.bounds``: a
+    mode-TV difference lies in [-1, 1]); the word was decided on the unclipped interval."""
+    from dc_lesson.experiments import report   # lazy: report reads verdicts' t interval
+    limits = report.bounds(claim.measure, difference=True)
     parts = []
     for e in entries:
-        band = (f"[{fmt_num(e[3])}, {fmt_num(e[4])}]" if np.isfinite(e[3]) and np.isfinite(e[4])
+        lo, hi = report.clip(e[3], e[4], limits)
+        band = (f"[{fmt_num(lo)}, {fmt_num(hi)}]" if np.isfinite(e[3]) and np.isfinite(e[4])
                 else "(no interval)")
         p = f", p (Holm) {e[6]:.3f}" if np.isfinite(e[6]) else ""
         parts.append(f"{label(e[0])}: {claim.a} - {claim.b} = {fmt_num(e[2])} {band} over "

@@ -175,11 +175,15 @@ def run_cell(cell, needs):
 
 # -- the gate ----------------------------------------------------------------------------------
 
-def keeps(runs: list[dict]) -> tuple[bool, str]:
+NOT_RUN = "not run yet"
+
+
+def keeps(runs: list[dict]) -> tuple[bool | None, str]:
     """``runs``: one task's seeds, each ``{"start", "final", "curve"}`` scaled returns (curve:
-    a list of them). Whether the learner kept its perfect start there, and why not."""
+    a list of them). Whether the learner kept its perfect start there, and why not; None
+    while no seed has run (not shown is not failed)."""
     if not runs:
-        return False, "no runs"
+        return None, NOT_RUN
     kept = [r["final"] >= r["start"] - KEEP_TOLERANCE for r in runs]
     dips = [r["start"] - min(r["curve"] or [r["final"]]) for r in runs]
     if np.mean(kept) < KEEP_SHARE:
@@ -192,9 +196,9 @@ def keeps(runs: list[dict]) -> tuple[bool, str]:
 
 def learns(runs: list[dict]) -> tuple[bool | None, str]:
     """One task's seeds from the weak start: True / False, or None when the start was not
-    weak (the question then tells nothing)."""
+    weak (the question then tells nothing) or while no seed has run."""
     if not runs:
-        return False, "no runs"
+        return None, NOT_RUN
     start = float(np.mean([r["start"] for r in runs]))
     if start > WEAK_CEILING:
         return None, f"its weak start was not weak ({start:.2f} > {WEAK_CEILING})"
@@ -205,8 +209,10 @@ def learns(runs: list[dict]) -> tuple[bool | None, str]:
 
 
 def gate(observations: list[dict]) -> dict[str, dict]:
-    """Per learner: ``{"passed": bool | None, "reason": str, "parts": {...}}`` from the
-    aggregate's observations (None: a part is missing or uninformative, so not yet shown)."""
+    """Per learner: ``{"passed": bool | None, "reason": str}`` from the aggregate's
+    observations.  False when a part on record fails (the reason names the failing parts),
+    None when none fails but a part is not run or not informative (the reason names those),
+    True when every part passes."""
     out = {}
     for learner in LEARNERS:
         reasons, verdicts = [], []
@@ -217,19 +223,23 @@ def gate(observations: list[dict]) -> dict[str, dict]:
                         and o["task"] == task]
                 ok, why = rule(runs)
                 verdicts.append(ok)
-                if ok is not True:
-                    reasons.append(f"{part} on {task}: {why}")
+                reasons.append((ok, f"{part} on {task}: {why}"))
         passed = (False if False in verdicts else None if None in verdicts else True)
-        out[learner] = {"passed": passed, "reason": "; ".join(reasons)}
+        out[learner] = {"passed": passed,
+                        "reason": "; ".join(why for ok, why in reasons if ok is passed
+                                            and passed is not True)}
     return out
 
 
 def competence(aggregate: dict) -> dict[str, str]:
     """The ``competence`` mapping for :mod:`dc_lesson.experiments.verdicts`: each learner that
-    did not pass, with the reason a "not judged" verdict prints."""
-    return {k: ("failed the competence gate: " + v["reason"] if v["passed"] is False
-                else "competence not yet shown: " + v["reason"])
-            for k, v in aggregate["gate"].items() if v["passed"] is not True}
+    did not pass, with the phrase a "not judged" verdict prints after its name.  The gate is
+    recomputed from the observations by today's rules, so a rule changed since the
+    aggregate was written reaches every verdict."""
+    g = gate(aggregate["observations"]) if "observations" in aggregate else aggregate["gate"]
+    return {k: (f"failed the competence gate — {v['reason']}" if v["passed"] is False
+                else f"has not yet shown competence — {v['reason']}")
+            for k, v in g.items() if v["passed"] is not True}
 
 
 def aggregate(records, b) -> dict:
