@@ -82,3 +82,23 @@ def test_unknown_learner_names_the_registered_ones():
 def test_bc_takes_no_start_and_no_checkpoint(demos, tmp_path):
     with pytest.raises(algorithms.LearnerInputError, match="from scratch"):
         algorithms.bc.train(TASK, demos, _small("bc", 0), checkpoint=tmp_path / "x")
+
+
+def test_one_seed_splits_into_named_streams_that_grow_without_moving():
+    """Every learner splits its seed with ``base.seed_streams``: distinct streams, the same
+    for the same seed, and a stream added at the end moves none before it (which is why a
+    learner with five streams and one with three agree on the first three)."""
+    import inspect
+    import re
+
+    from dc_lesson.algorithms import base
+    three = base.seed_streams(7, "init", "sample", "env")
+    five = base.seed_streams(7, "init", "sample", "env", "disc", "expert")
+    assert five[:3] == three and len(set(five)) == 5
+    assert base.seed_streams(8, "init", "sample", "env") != three
+    with pytest.raises(ValueError, match="distinct stream names"):
+        base.seed_streams(7, "env", "env")
+    # no learner draws its own split any more (one helper, one place to read it)
+    for name in algorithms.ALGORITHMS:
+        src = inspect.getsource(inspect.getmodule(algorithms.get(name).train))
+        assert not re.search(r"SeedSequence\(\w+(\.seed)?\)\.generate_state", src), name

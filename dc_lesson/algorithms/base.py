@@ -21,6 +21,7 @@ import dataclasses
 import json
 from typing import Any
 
+import numpy as np
 import torch
 
 from dc_lesson import tasks as _tasks
@@ -52,6 +53,18 @@ class TrainResult:
 # GAIL's tuned value since round 2) GAIL, DRIL, PWIL, NDI, GPRIL and DC kept it on 3 of 3
 # and PPO ended at 0.92 / 0.92 / 1.00. The competence study judges the rule at full length.
 START_LOG_STD = -2.0
+
+
+def seed_streams(seed: int, *names: str) -> tuple[int, ...]:
+    """One run's seed split into independent streams, one per name, in the order named (the
+    names document the split; each learner lists its own, e.g. ``"init", "sample", "env"``).
+
+    The streams are the words of NumPy's ``SeedSequence(seed)``: statistically independent,
+    and the first k words do not depend on how many are drawn, so a learner that adds a
+    stream at the end changes none of the earlier ones (``tests/test_algorithms.py``)."""
+    if len(set(names)) != len(names) or not names:
+        raise ValueError(f"seed_streams needs distinct stream names, got {names}")
+    return tuple(int(s) for s in np.random.SeedSequence(seed).generate_state(len(names)))
 
 
 def set_start_noise(policy, log_std: float | None) -> None:

@@ -46,7 +46,7 @@ Choices made where the paper is silent (each a field of :class:`BCConfig`):
   into PPO/DC unchanged.
 
 Determinism: ``config.seed`` decides the split, the initial weights and the minibatch order
-(three seeds drawn from NumPy's ``SeedSequence``), so one configuration gives the same policy
+(three streams of :func:`~dc_lesson.algorithms.base.seed_streams`), so one configuration gives the same policy
 to the last digit (in one process with a fixed thread count).
 
 Speed (``dc_lesson.nn.fast``): :func:`bc_step` as you read it, :func:`bc_loss` through autograd
@@ -69,7 +69,8 @@ from dc_lesson.checks import check_fields
 from dc_lesson.data.types import Demonstrations, Trajectory
 from dc_lesson import progress as _progress
 from dc_lesson import timing as _timing
-from dc_lesson.algorithms.base import LearnerInputError, TrainResult, check_inputs
+from dc_lesson.algorithms.base import (LearnerInputError, TrainResult, check_inputs,
+                                      seed_streams)
 from dc_lesson.nn import backprop as _backprop
 from dc_lesson.nn import fast as _fast
 from dc_lesson.nn.mixture import MixturePolicy
@@ -296,8 +297,7 @@ def train_bc(demos_or_trajectories, config: BCConfig = BCConfig(), progress: boo
     """
     eps = episodes(demos_or_trajectories)
     obs_dim, act_dim = eps[0][0].shape[1], eps[0][1].shape[1]
-    split_seed, init_seed, order_seed = (
-        int(s) for s in np.random.SeedSequence(config.seed).generate_state(3))
+    split_seed, init_seed, order_seed = seed_streams(config.seed, "split", "init", "order")
     train_idx, val_idx = split_episodes(len(eps), config.val_fraction, split_seed)
     train_obs, train_act = _stack(eps, train_idx)
     val_obs, val_act = (_stack(eps, val_idx) if len(val_idx)

@@ -420,8 +420,8 @@ def _setup(task, demos, config: DCConfig, policy) -> _Run:
     if policy is None:
         policy = _bc.warm_start_policy(demos, config.seed)
     _base.set_start_noise(policy, config.start_log_std)
-    flow_seed, init_seed, sample_seed, env_seed = (
-        int(s) for s in np.random.SeedSequence(config.seed).generate_state(4))
+    flow_seed, init_seed, sample_seed, env_seed = _base.seed_streams(
+        config.seed, "flow", "init", "sample", "env")
     with torch.random.fork_rng(devices=[]):
         torch.manual_seed(init_seed)
         learner = make_learner(policy, config, spec.obs_dim)

@@ -131,7 +131,8 @@ def fit_ensemble(obs: torch.Tensor, act: torch.Tensor, config: DRILConfig, seed:
     """``ensemble_size`` BC policies, each on a bootstrap resample of the pairs (obs, act)."""
     members = []
     n = len(obs)
-    for e, s in enumerate(np.random.SeedSequence(seed).generate_state(config.ensemble_size)):
+    for e, s in enumerate(_base.seed_streams(seed, *(f"member {i}"
+                                                     for i in range(config.ensemble_size)))):
         g = torch.Generator().manual_seed(int(s))
         with torch.random.fork_rng(devices=[]):
             torch.manual_seed(int(s))
@@ -186,8 +187,8 @@ def train(task: str, demos, config: DRILConfig = DRILConfig(), *,
     spec = _tasks.spec(task)
     check_inputs(task, demos, policy)
     pcfg = config.ppo_config
-    init_seed, sample_seed, env_seed, ens_seed, bc_seed = (
-        int(s) for s in np.random.SeedSequence(config.seed).generate_state(5))
+    init_seed, sample_seed, env_seed, ens_seed, bc_seed = _base.seed_streams(
+        config.seed, "init", "sample", "env", "ens", "bc")
     e_obs, e_act = _bc.pairs(demos)
     members = fit_ensemble(e_obs, e_act, config, ens_seed, pcfg.hidden)
     threshold = cost_threshold(members, e_obs, e_act, config.quantile)

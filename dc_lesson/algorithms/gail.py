@@ -105,8 +105,8 @@ Implementation details, each a field of :class:`GAILConfig`:
 
 Determinism: ``config.seed`` decides the initialisation of the networks, one generator for the
 action noise and PPO's minibatch order, the stream of episode seeds and one generator for the
-discriminator's minibatches and the expert's action noise (four seeds from NumPy's
-``SeedSequence``, as in ``ppo.py``).  A checkpoint (``_reward_ppo.run``'s, with the
+discriminator's minibatches and the expert's action noise (four streams of
+:func:`~dc_lesson.algorithms.base.seed_streams`, as in ``ppo.py``).  A checkpoint (``_reward_ppo.run``'s, with the
 discriminator, its optimiser and its generator) stores all of it, so a resumed run ends
 exactly where an uninterrupted one does.
 """
@@ -374,8 +374,8 @@ def train(task: str, demos, config: GAILConfig = GAILConfig(), *,
         raise ValueError("expert_noise='learner' adds the learner's Gaussian noise to the "
                          "expert's actions; this policy has no single log-std (a mixture): "
                          "set expert_noise=None")
-    init_seed, sample_seed, env_seed, disc_seed = (
-        int(s) for s in np.random.SeedSequence(config.seed).generate_state(4))
+    init_seed, sample_seed, env_seed, disc_seed = _base.seed_streams(
+        config.seed, "init", "sample", "env", "disc")
     # the start's exploration noise (a mixture has its own spreads; a resume restores the saved)
     _base.set_start_noise(policy, config.start_log_std)
     # the policy's (and critic's) normaliser: the expert's statistics, then frozen; D is drawn

@@ -350,8 +350,8 @@ def train(task: str, demos, config: GPRILConfig = GPRILConfig(), *,
     log-std, the mean horizon of the tuples, the training episodes' return, steps per second."""
     spec = _tasks.spec(task)
     check_inputs(task, demos, policy)
-    init_seed, sample_seed, env_seed, model_seed, expert_seed = (
-        int(s) for s in np.random.SeedSequence(config.seed).generate_state(5))
+    init_seed, sample_seed, env_seed, model_seed, expert_seed = _base.seed_streams(
+        config.seed, "init", "sample", "env", "model", "expert")
     e_obs, e_act = _bc.pairs(demos)
     _base.set_start_noise(policy, config.start_log_std)   # a given start's noise
     with torch.random.fork_rng(devices=[]):

@@ -216,8 +216,8 @@ def train(task: str, demos, config: NDIConfig = NDIConfig(), *,
     spec = _tasks.spec(task)
     check_inputs(task, demos, policy)
     pcfg = config.ppo_config
-    init_seed, sample_seed, env_seed, flow_seed = (
-        int(s) for s in np.random.SeedSequence(config.seed).generate_state(4))
+    init_seed, sample_seed, env_seed, flow_seed = _base.seed_streams(
+        config.seed, "init", "sample", "env", "flow")
     e_obs, e_act = _bc.pairs(demos)
     flow = fit_density(demos, config, flow_seed)
     scale = None

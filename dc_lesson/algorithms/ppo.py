@@ -17,8 +17,9 @@ keeps that final observation (``next_obs``) apart from the reset observation the
 continues from.
 
 Determinism: ``config.seed`` decides the network initialisation, one ``torch.Generator`` (action
-noise and minibatch order) and the stream of episode seeds (NumPy's ``SeedSequence``, as in
-:func:`dc_lesson.data.rollout.episode_seeds`), so one configuration always gives the same numbers.
+noise and minibatch order) and the stream of episode seeds, three streams of
+:func:`~dc_lesson.algorithms.base.seed_streams` (as :func:`dc_lesson.data.rollout.episode_seeds`
+splits its own), so one configuration always gives the same numbers.
 A checkpoint stores all of that state, so a resumed run ends exactly where an uninterrupted one
 does.
 
@@ -603,8 +604,7 @@ def train(task: str, demos=None, config: PPOConfig = PPOConfig(), *,
     # and kept 1.00 on 2 of 3 with it frozen; issue 38's probe.)
     frozen_norm = policy is not None and policy.obs_norm is not None
     _base.set_start_noise(policy, config.start_log_std)
-    init_seed, sample_seed, env_seed = (
-        int(s) for s in np.random.SeedSequence(config.seed).generate_state(3))
+    init_seed, sample_seed, env_seed = _base.seed_streams(config.seed, "init", "sample", "env")
     # Seed the initialisation without changing the caller's global torch RNG.
     with torch.random.fork_rng(devices=[]):
         torch.manual_seed(init_seed)

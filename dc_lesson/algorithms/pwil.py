@@ -241,8 +241,8 @@ def train(task: str, demos, config: PWILConfig = PWILConfig(), *,
     spec = _tasks.spec(task)
     check_inputs(task, demos, policy)
     pcfg = config.ppo_config
-    init_seed, sample_seed, env_seed, atom_seed = (
-        int(s) for s in np.random.SeedSequence(config.seed).generate_state(4))
+    init_seed, sample_seed, env_seed, atom_seed = _base.seed_streams(
+        config.seed, "init", "sample", "env", "atom")
     e_obs, _ = _bc.pairs(demos)
     _base.set_start_noise(policy, config.start_log_std)   # a given start's noise
     policy, value_fn = _reward_ppo.make_networks(spec, pcfg, e_obs, policy, init_seed)
