@@ -14,9 +14,11 @@ from dc_lesson.experiments.studies import headroom
 def test_the_grid_is_task_by_protocol_by_count_by_seed(name, seeds, episodes):
     b = budget.get(name)
     grid = studies.get("headroom").grid(b)
-    assert len(grid) == len(headroom.TASKS) * len(headroom.PROTOCOLS) * 4 * seeds
+    per_task = (len(headroom.PROTOCOLS) - 1) * len(headroom.COUNTS) + 4   # the diagnostic: 4
+    assert len(grid) == len(headroom.TASKS) * per_task * seeds
     assert {c.task for c in grid} == set(headroom.TASKS)
-    assert {c.n_demos for c in grid} == {1, 4, 11, 25}
+    assert {c.n_demos for c in grid} == set(headroom.COUNTS)
+    assert {c.n_demos for c in grid if c.variant == "subsampled-libcap"} == {1, 4, 11, 25}
     assert {c.variant for c in grid} == {"subsampled", "full", "subsampled-libcap"}
     assert {c.seed for c in grid} == set(range(seeds))
     for c in grid:
@@ -74,3 +76,35 @@ def test_the_rule_needs_the_band_and_a_rise_and_says_nothing_from_one_seed():
     assert one["rises"] is None and one["headroom"] is None and one["in_band"]
     with pytest.raises(ValueError, match="same seeds"):
         headroom.headroom_rule([0.5, 0.6], [0.9])
+
+
+def _rows(task, proto, means):
+    return [{"task": task, "protocol": proto, "n_demos": n, "scaled_return_mean": m}
+            for n, m in means.items()]
+
+
+def test_the_benchmark_takes_gails_protocol_first_at_the_fewest_count_in_the_band():
+    rows = (_rows("hopper", "subsampled", {1: 0.05, 4: 0.2, 11: 0.47, 18: 0.6, 25: 0.9})
+            + _rows("hopper", "full", {1: 0.5, 25: 1.0}))
+    got = headroom.choose(rows, "hopper")
+    # the whole demonstrations are in the band sooner, but GAIL's protocol comes first
+    assert (got["protocol"], got["every"], got["counts"]) == ("subsampled", 20, [11, 25])
+    assert got["bc"] == {11: 0.47, 25: 0.9} and got["why"] == ""
+    walker = (_rows("walker", "subsampled", {1: 0.0, 25: 0.1})
+              + _rows("walker", "full", {1: 0.0, 11: 0.47, 25: 0.67}))
+    assert headroom.choose(walker, "walker")["protocol"] == "full"
+    assert headroom.choose(walker, "walker")["counts"] == [11, 25]
+    # at the band's edges: inside counts
+    edge = _rows("ant", "subsampled", {4: headroom.BAND[0], 25: 0.9})
+    assert headroom.choose(edge, "ant")["counts"] == [4, 25]
+
+
+@pytest.mark.parametrize("means, why", [
+    ({1: 0.9, 25: 1.0}, "above the band at every count"),
+    ({1: 0.0, 25: 0.1}, "below the band at every count"),
+    ({4: 0.2, 6: 0.8, 25: 0.9}, "passes the band between two neighbouring counts")])
+def test_a_task_without_a_count_in_the_band_says_where_bc_is(means, why):
+    rows = _rows("t", "subsampled", means) + _rows("t", "full", means)
+    got = headroom.choose(rows, "t")
+    assert got["protocol"] is None and got["counts"] == [] and why in got["why"]
+    assert headroom.choose([], "t")["why"] == "no cells yet"
