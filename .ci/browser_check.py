@@ -18,7 +18,9 @@ What it does, in order:
    notebook, clicks Run > Run All Cells, and waits until every cell has run and the kernel is
    idle (the Jupyter REST API's ``execution_state`` and the cells' ``[*]`` prompts);
 4. fails (exit 1, one line per problem) on any error or stderr output (the pink boxes), a
-   widget that did not render, a warning in any output, a figure the kernel sent that the page
+   widget that did not render, a warning in any output (a figure whose tick labels collide is
+   one: ``dc_lesson.viz.legibility``, which every chapter's ``notebook.start`` turns on), a
+   figure the kernel sent that the page
    does not show, a cell that did not run, a table showing NaN / None / <NA>, a table cell cut
    short with an ellipsis, a figure drawn at less than 60% of its natural width (its labels
    become unreadable), a raw Python repr (a dict, an array, an object's address, a float of

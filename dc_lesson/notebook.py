@@ -28,6 +28,8 @@ def start(smoke_note: str) -> _budget.Budget:
     logging.getLogger("absl").setLevel(logging.ERROR)
     torch.set_num_threads(1)   # the machine's cores are shared; one thread also repeats exactly
     _tables()
+    from dc_lesson.viz import legibility
+    legibility.watch()         # a figure whose tick labels collide warns under its cell
     b = _budget.current()
     print(f"budget: {b.name} (one of {', '.join(_budget.PRESETS)})")
     print(_wrap(CHANGE_NOTE))
