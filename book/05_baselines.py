@@ -489,6 +489,25 @@ if gate_record is not None:
     plt.show()
 
 # %% [markdown]
+# **Where the curves flatten: the next grids' interactions.** The learn panels also say how
+# long learning takes, and the grids run again on that many interactions rather than a guess
+# (chapter 6). The rule, declared before the curves ran (`competence.plateau`): a mean curve
+# has flattened at the first checkpoint from which every later checkpoint lies within
+# 0.05 (the verdicts' smallest effect) of its final level, the mean of its last three
+# checkpoints; a task's budget is the latest plateau among the learners that pass the learn
+# part there (a curve that never rose is flat from the start and says nothing).
+
+# %%
+if gate_record is not None:
+    flat = pd.DataFrame(competence_report.budgets(gate_record))
+    flat["flattens at"] = [f"{int(x):,}" if x == x and x is not None else "not yet"
+                           for x in flat["flattens at"]]
+    flat["final level"] = [f"{x:.2f}" if x == x and x is not None else ""
+                           for x in flat["final level"]]
+    flat["seeds"] = [str(int(x)) if x == x and x is not None else "" for x in flat["seeds"]]
+    display(flat.set_index(["task", "learner"]))
+
+# %% [markdown]
 # ## Their rows of Table I
 #
 # The four run in chapter 4's Table I study (`dc-lesson sweep table1`: the realizable

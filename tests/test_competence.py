@@ -318,3 +318,36 @@ def test_the_book_s_verdicts_read_the_stored_gate_by_default(monkeypatch):
                                  "competence study on record")
     # a mapping given explicitly wins over the stored gate ({}: judge every learner)
     assert claims.verdicts(obs, shares, competence={})[2].per_task[0][1] == "reproduced"
+
+
+def test_a_curve_flattens_where_every_later_mean_stays_near_its_final_level():
+    from dc_lesson.experiments import competence as report
+    steps = [100 * (i + 1) for i in range(8)]
+    rising = [0.0, 0.3, 0.6, 0.8, 0.9, 0.93, 0.92, 0.94]     # level 0.93
+    assert report.plateau(steps, rising) == 500               # 0.9 is within 0.05 of it
+    # a late dip moves the plateau past it, however early the curve first got there
+    dipped = [0.0, 0.9, 0.93, 0.7, 0.92, 0.93, 0.94, 0.93]
+    assert report.plateau(steps, dipped) == 500
+    assert report.plateau(steps, [0.5] * 8) == 100            # flat from the start
+    assert report.plateau(steps[:3], rising[:3]) is None      # too short to have a level
+
+
+def test_the_budget_is_the_latest_plateau_of_the_learners_that_learn():
+    from dc_lesson.experiments import competence as report
+    obs = []
+    curve_steps = [100_000 * (i + 1) for i in range(8)]
+    for s in range(5):
+        obs.append({"row": "dc", "part": "learn", "task": "hopper", "seed": s, "start": 0.1,
+                    "final": 0.9, "curve": [0.1, 0.5] + [0.9] * 6,
+                    "curve_steps": curve_steps})
+        obs.append({"row": "gail", "part": "learn", "task": "hopper", "seed": s, "start": 0.1,
+                    "final": 0.85, "curve": [0.1, 0.2, 0.4, 0.6] + [0.85] * 4,
+                    "curve_steps": curve_steps})
+        obs.append({"row": "ndi", "part": "learn", "task": "hopper", "seed": s, "start": 0.1,
+                    "final": 0.1, "curve": [0.1] * 8, "curve_steps": curve_steps})
+    got = {(r["task"], r["learner"]): r for r in report.budgets({"observations": obs})}
+    assert got[("hopper", "DC")]["flattens at"] == 300_000
+    assert got[("hopper", "GAIL")]["flattens at"] == 500_000
+    assert got[("hopper", "NDI")]["flattens at"] == 100_000       # never rose: flat at once
+    assert got[("hopper", "budget")]["flattens at"] == 500_000    # NDI does not count
+    assert got[("halfcheetah", "budget")]["flattens at"] is None

@@ -145,6 +145,53 @@ def curves(rec: dict, part: str, task: str) -> dict[str, dict]:
     return out
 
 
+PLATEAU_TOLERANCE = 0.05   # scaled return: the smallest effect of the book's verdicts
+PLATEAU_TAIL = 3           # checkpoints whose mean is a curve's final level
+
+
+def plateau(steps, mean, tol: float = PLATEAU_TOLERANCE) -> int | None:
+    """Where a mean learning curve has flattened: the interactions of the first checkpoint
+    from which every later checkpoint's mean lies within ``tol`` of the curve's final level
+    (the mean of its last :data:`PLATEAU_TAIL` checkpoints), so that more interactions would
+    change the mean by less than the book's smallest effect.  None with fewer than
+    ``PLATEAU_TAIL + 1`` checkpoints (no level to compare with)."""
+    if len(mean) <= PLATEAU_TAIL:
+        return None
+    level = float(np.mean(mean[-PLATEAU_TAIL:]))
+    first = len(mean) - 1
+    while first > 0 and abs(mean[first - 1] - level) <= tol:
+        first -= 1
+    return int(steps[first])
+
+
+def budgets(rec: dict) -> list[dict]:
+    """The interactions the next grids use, from the "learns" curves (issue 41, item 2): per
+    learn task and learner with seeds on record, where its mean curve flattens
+    (:func:`plateau`) and its final level; then per task the budget, the latest plateau
+    among the learners that pass the learn part there (a curve that never rose flattens at
+    once and would say nothing), None while none does.  The keep part is not asked: it
+    judges stability, the budget asks how long learning takes."""
+    out = []
+    for task in _study.LEARN_TASKS:
+        curves_ = curves(rec, "learn", task)
+        rows_ = {r["learner"]: r for r in rows(rec) if r["part"] == "learn"
+                 and r["task"] == task}
+        learned = []
+        for name, c in curves_.items():
+            at = plateau(c["steps"], c["mean"])
+            passes = rows_[name]["word"] == "passes"
+            if passes and at is not None:
+                learned.append(at)
+            out.append({"task": task, "learner": name, "seeds": c["seeds"],
+                        "final level": float(np.mean(c["mean"][-PLATEAU_TAIL:])),
+                        "flattens at": at, "learns": rows_[name]["word"]})
+        out.append({"task": task, "learner": "budget", "seeds": None, "final level": None,
+                    "flattens at": max(learned) if learned else None,
+                    "learns": f"the latest plateau of {len(learned)} learner(s) that learn"
+                    if learned else "no learner passes the learn part here yet"})
+    return out
+
+
 def sentence(rec: dict) -> str:
     """What the gate says so far, in one paragraph rendered from the record."""
     words = gate_words(rec)
@@ -163,5 +210,6 @@ def sentence(rec: dict) -> str:
     return "On the cells on record, " + "; ".join(parts) + "."
 
 
-__all__ = ["NAMES", "RESULT", "STORED", "curves", "mapping", "resolve", "gate_words", "load", "overview", "rows", "sentence",
+__all__ = ["NAMES", "PLATEAU_TAIL", "PLATEAU_TOLERANCE", "RESULT", "STORED", "budgets", "curves",
+           "mapping", "plateau", "resolve", "gate_words", "load", "overview", "rows", "sentence",
            "status"]
