@@ -9,7 +9,9 @@ import sys
 import tomllib
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
-OPTIONAL = {"imitation"}   # data.convert.to_imitation imports it lazily, with a clear error
+# imported lazily, with a clear error: data.convert.to_imitation and the perf benchmarks
+# against imitation 1.0.1 (and its stable-baselines3), installed in their own environment
+OPTIONAL = {"imitation", "stable_baselines3"}
 
 
 def _imports(path: pathlib.Path) -> set[str]:

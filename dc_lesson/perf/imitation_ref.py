@@ -97,6 +97,19 @@ def compare(task: str, seeds, n_demos: int = 18, n_episodes: int = 50,
             "rows": rows}
 
 
+def ready(out: str | None, check_import=None) -> None:
+    """Before any compute: ``out`` writable, imitation importable (``check_import``, default
+    this module's; else exit 2 with the fix, the first thing to say), one torch thread."""
+    if out:
+        check_writable(out)
+    try:
+        (check_import or _imitation)()
+    except ImportError as e:
+        print(f"error: {e}", file=sys.stderr)
+        raise SystemExit(2) from None
+    torch.set_num_threads(1)
+
+
 def main(argv=None) -> dict:
     p = argparse.ArgumentParser(prog="python -m dc_lesson.perf.imitation_ref",
                                 description=__doc__.split("\n")[0])
@@ -104,14 +117,7 @@ def main(argv=None) -> dict:
     p.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2, 3])
     p.add_argument("--out", default=None, help="write the result JSON here")
     args = p.parse_args(argv)
-    if args.out:
-        check_writable(args.out)
-    try:
-        _imitation()   # before any compute: a missing library is the first thing to say
-    except ImportError as e:
-        print(f"error: {e}", file=sys.stderr)
-        raise SystemExit(2) from None
-    torch.set_num_threads(1)
+    ready(args.out)
     out = compare(args.task, args.seeds)
     for r in out["rows"]:
         print(f"{r['library']:9s} seed {r['seed']}: scaled return {r['scaled_return']:.3f}, "
