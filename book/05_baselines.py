@@ -492,9 +492,9 @@ if gate_record is not None:
 # **Where the curves flatten: the next grids' interactions.** The learn panels also say how
 # long learning takes, and the grids run again on that many interactions rather than a guess
 # (chapter 6). The rule, declared before the curves ran (`competence.plateau`): a mean curve
-# has flattened at the first checkpoint from which every later checkpoint lies within
-# 0.05 (the verdicts' smallest effect) of its final level, the mean of its last three
-# checkpoints; a task's budget is the latest plateau among the learners that pass the learn
+# has flattened at the first checkpoint from which no later checkpoint lies more than 0.05
+# (the verdicts' smallest effect) below its final level, the mean of its last three
+# checkpoints, so more interactions would not raise it by that much; a task's budget is the latest plateau among the learners that pass the learn
 # part there (a curve that never rose is flat from the start and says nothing).
 
 # %%

@@ -329,6 +329,8 @@ def test_a_curve_flattens_where_every_later_mean_stays_near_its_final_level():
     dipped = [0.0, 0.9, 0.93, 0.7, 0.92, 0.93, 0.94, 0.93]
     assert report.plateau(steps, dipped) == 500
     assert report.plateau(steps, [0.5] * 8) == 100            # flat from the start
+    # there early, then wobbling above the level: learned at 200 (the wobble is not learning)
+    assert report.plateau(steps, [0.0, 0.98, 0.85, 0.99, 0.86, 0.85, 0.86, 0.85]) == 200
     assert report.plateau(steps[:3], rising[:3]) is None      # too short to have a level
 
 

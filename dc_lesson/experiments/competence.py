@@ -151,15 +151,17 @@ PLATEAU_TAIL = 3           # checkpoints whose mean is a curve's final level
 
 def plateau(steps, mean, tol: float = PLATEAU_TOLERANCE) -> int | None:
     """Where a mean learning curve has flattened: the interactions of the first checkpoint
-    from which every later checkpoint's mean lies within ``tol`` of the curve's final level
+    from which no later checkpoint's mean lies more than ``tol`` below the curve's final level
     (the mean of its last :data:`PLATEAU_TAIL` checkpoints), so that more interactions would
-    change the mean by less than the book's smallest effect.  None with fewer than
-    ``PLATEAU_TAIL + 1`` checkpoints (no level to compare with)."""
+    raise the mean by less than the book's smallest effect.  One-sided on purpose: a curve
+    that got there early and then wobbles above its level has learned (the wobble is the
+    gate's "keep" question, not the budget's).  None with fewer than ``PLATEAU_TAIL + 1``
+    checkpoints (no level to compare with)."""
     if len(mean) <= PLATEAU_TAIL:
         return None
     level = float(np.mean(mean[-PLATEAU_TAIL:]))
     first = len(mean) - 1
-    while first > 0 and abs(mean[first - 1] - level) <= tol:
+    while first > 0 and mean[first - 1] >= level - tol:
         first -= 1
     return int(steps[first])
 
