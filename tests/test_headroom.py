@@ -97,12 +97,16 @@ def test_the_benchmark_takes_gails_protocol_first_at_the_fewest_count_in_the_ban
     # at the band's edges: inside counts
     edge = _rows("ant", "subsampled", {4: headroom.BAND[0], 25: 0.9})
     assert headroom.choose(edge, "ant")["counts"] == [4, 25]
+    # in the band once, then back below it at a larger count: seed noise, not the start
+    noisy = _rows("hopper", "subsampled", {4: 0.19, 6: 0.41, 8: 0.18, 11: 0.47, 25: 0.94})
+    assert headroom.choose(noisy, "hopper")["counts"] == [11, 25]
 
 
 @pytest.mark.parametrize("means, why", [
     ({1: 0.9, 25: 1.0}, "above the band at every count"),
     ({1: 0.0, 25: 0.1}, "below the band at every count"),
-    ({4: 0.2, 6: 0.8, 25: 0.9}, "passes the band between two neighbouring counts")])
+    ({4: 0.2, 6: 0.8, 25: 0.9}, "passes the band between two neighbouring counts"),
+    ({4: 0.5, 6: 0.2, 25: 0.3}, "falls back below it at a larger count")])
 def test_a_task_without_a_count_in_the_band_says_where_bc_is(means, why):
     rows = _rows("t", "subsampled", means) + _rows("t", "full", means)
     got = headroom.choose(rows, "t")
