@@ -11,6 +11,7 @@
 | ``table1`` | ``table1.json`` | every learner and control on the multi-mode tasks, both evaluations |
 | ``table3`` | ``table3.json`` | every learner on the single-mode tasks per demonstration count |
 | ``competence`` | ``competence.json`` | every RL learner from a perfect and from a weak start, with checkpoint curves: the gate a learner passes before it judges (issue 38) |
+| ``start_noise`` | ``start_noise.json`` (chapter 05, beside the gate) | the competence study's BC starts with small random noise on their weights: how much change they survive |
 | ``clonable`` | ``clonable.json`` (chapter 00's floor table) | BC from 25 demonstrations of each single-mode expert, per seed |
 | ``headroom`` | ``headroom.json`` (issue 41: the benchmark's protocol) | BC on GAIL's subsampled and on full-length demonstrations per task, count and seed |
 | ``softflow_fit`` | ``softflow_fit_cells.json`` (chapter 03 reads it and the cells' arrays through ``fit_record``) | SoftFlow on the circle toy and on expert states, and each task's data and baselines |
@@ -27,7 +28,7 @@ import importlib
 from dc_lesson.experiments.cells import Study
 
 NAMES = ("reference", "bc_demos", "bc_drift", "gail_lr", "dc_ablation", "dc_lr", "table1",
-         "table3", "softflow_fit", "competence", "clonable", "headroom")
+         "table3", "softflow_fit", "competence", "start_noise", "clonable", "headroom")
 
 # The grid the book reads: every study.  ``dc-lesson sweep all`` runs them in this order (the
 # reference first: the others read it), and its ``--dry-run`` ledgers them.
