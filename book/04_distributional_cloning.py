@@ -35,7 +35,8 @@
 # 7. Table I on experts a Markov policy can follow, with controls, both evaluations and
 #    paired intervals over seeds, and on its runs return against interactions (Figure 5)
 #    and the update's convergence (Figure 6);
-# 8. the paper's claims, one by one: reproduced, contradicted or inconclusive, on our ports.
+# 8. the paper's claims, one by one: reproduced, contradicted or inconclusive, on our ports,
+#    or not judged while a learner compared has not passed chapter 5's competence gate.
 
 # %%
 import copy

@@ -843,7 +843,9 @@ with pd.option_context("display.max_colwidth", None):
 # * Each of the paper's claims is a paired test with a rule declared before its verdict
 #   could be read (the few declared later say so in their reasons): reproduced, contradicted
 #   or inconclusive, per task and demonstration count, with the tasks of fewer than 5
-#   paired seeds named, not counted.
+#   paired seeds named, not counted; and *not judged* wherever a learner compared, DC
+#   included, has not passed chapter 5's competence gate (its reason printed beside the
+#   word).
 # * On this grid the common BC start decides most of the answer: where it already earns
 #   the expert's return, no learner can add to it and the question becomes what a learner
 #   keeps; where it leaves room, the answer above says how DC compares with its start and
