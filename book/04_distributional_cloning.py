@@ -311,6 +311,9 @@ else:
                          f"({e['n_seeds']} seeds): EMD dc-coin - gail-coin "
                          f"{table_one.said(e, 'emd', t1)}.")
     display(Markdown("\n".join(lines)))
+    # going nowhere is not covering the modes: arrivals beside the largest mode among them
+    display(Markdown("Where the episodes go (mean over seeds):\n\n" + "\n".join(
+        table_one.arrival_lines(t1, ("expert", "bc-coin", "dc-coin", "gail-coin")))))
 
 # %% [markdown]
 # However DC and GAIL move their start, no Markov unimodal policy acting with its mean action

@@ -719,3 +719,21 @@ def test_the_mode_answer_is_held_back_while_dc_is_not_shown_competent():
     for said in (modes.conclusion(rec, competence=gate), modes.mechanism(rec, competence=gate)):
         assert "not judged: dc failed the competence gate — keep on hopper" in said
         assert "reproduced" not in said and "contradicted" not in said
+
+
+def test_arrival_separates_going_nowhere_from_covering_the_modes():
+    # a row that mostly arrives nowhere but, when it arrives, always goes to one mode
+    nowhere = [{"mode_shares": {"red": 0.2, "blue": 0.0, "none": 0.8}},
+               {"mode_shares": {"red": 0.0, "blue": 0.3, "none": 0.7}}]
+    got = table_one.arrival(nowhere)
+    assert got["arrived"] == pytest.approx(0.25)
+    assert got["largest_of_arrivals"] == pytest.approx(1.0)      # collapsed among arrivals
+    even = [{"mode_shares": {"red": 0.5, "blue": 0.5, "none": 0.0}}]
+    assert table_one.arrival(even) == {"arrived": 1.0, "largest_of_arrivals": 0.5,
+                                       "collapsed_among_arrivals": 0, "seeds_arriving": 1}
+    assert table_one.arrival(nowhere)["collapsed_among_arrivals"] == 2
+    # a seed that arrives nowhere at all has no largest mode of arrivals
+    lost = [{"mode_shares": {"red": 0.0, "blue": 0.0, "none": 1.0}}]
+    assert table_one.arrival(lost) == {"arrived": 0.0, "largest_of_arrivals": None,
+                                       "collapsed_among_arrivals": 0, "seeds_arriving": 0}
+    assert table_one.arrival([{"scaled_return": 1.0}]) is None

@@ -14,6 +14,8 @@ from __future__ import annotations
 
 import statistics
 
+import numpy as np
+
 from dc_lesson.evaluation import stats
 from dc_lesson.experiments import claims, report, verdicts as _verdicts
 from dc_lesson.experiments.report import fmt, fmt_entry
@@ -118,12 +120,35 @@ def _order(row: str) -> int:
     return keys.index(row) if row in keys else len(keys)
 
 
+def arrival(observations) -> dict | None:
+    """Over the seeds of one row's observations: the mean share of episodes that arrive at a
+    mode (1 - "none") and, among the seeds whose episodes arrive anywhere, the mean share of
+    the arrivals that go to the seed's largest mode, and how many of those seeds put at least
+    ``claims.COLLAPSE_SHARE`` of their arrivals in one mode.  A row whose episodes mostly
+    arrive nowhere has not collapsed, nor does it cover the modes: the numbers side by side
+    say which it is.  None without mode shares."""
+    shares = [o["mode_shares"] for o in observations if o.get("mode_shares")]
+    if not shares:
+        return None
+    arrived = [1.0 - s.get("none", 0.0) for s in shares]
+    largest = [max(v for k, v in s.items() if k != "none") / a
+               for s, a in zip(shares, arrived) if a > 0]
+    return {"arrived": float(np.mean(arrived)),
+            "largest_of_arrivals": float(np.mean(largest)) if largest else None,
+            "collapsed_among_arrivals": sum(x >= claims.COLLAPSE_SHARE for x in largest),
+            "seeds_arriving": len(largest)}
+
+
 def table(rec: dict, actions: str = "mean", digits: int = 3) -> list[dict]:
     """One dict per (task, row): n seeds, EMD / KL / RKL / scaled return as ``mean [lo, hi]``
-    (95% t intervals over seeds), the TV of mode shares from the reference's (the same) and the
-    mean shares."""
+    (95% t intervals over seeds), the TV of mode shares from the reference's (the same), the
+    mean shares, and (:func:`arrival`) the share of episodes arriving at a mode beside the
+    share of the arrivals in the largest mode."""
     part = rec[actions]
     tv = {(m["task"], m["row"]): m for m in part["modes"]}
+    by_row: dict = {}
+    for o in part.get("observations", []):
+        by_row.setdefault((o["task"], o["row"]), []).append(o)
     out = []
     for r in sorted(part["expert"] + part["table"],
                     key=lambda r: (TASKS.index(r["task"]) if r["task"] in TASKS else 9,
@@ -137,8 +162,44 @@ def table(rec: dict, actions: str = "mean", digits: int = 3) -> list[dict]:
                     "collapsed seeds": (f"{round(m['collapsed_share'] * m['n_seeds'])}/"
                                         f"{m['n_seeds']}") if m else "",
                     "modes": ", ".join(f"{k} {v:.2f}" for k, v in
-                                       r.get("mode_shares_mean", {}).items())})
+                                       r.get("mode_shares_mean", {}).items()),
+                    **_arrival_columns(arrival(by_row.get((r["task"], r["row"]), [])))})
     return out
+
+
+def arrival_lines(rec: dict, rows, actions: str = "mean") -> list[str]:
+    """Per task, one Markdown line: for each of ``rows``, the share of episodes arriving at a
+    mode and the share of the arrivals in the largest one (:func:`arrival`, means over
+    seeds), and in how many seeds that share is at least ``claims.COLLAPSE_SHARE``.
+    Descriptive: the claims' verdicts are judged elsewhere."""
+    by_row: dict = {}
+    for o in rec[actions].get("observations", []):
+        by_row.setdefault((o["task"], o["row"]), []).append(o)
+    out = []
+    for task in TASKS:
+        bits = []
+        for row in rows:
+            a = arrival(by_row.get((task, row), []))
+            if a is None:
+                continue
+            big = a["largest_of_arrivals"]
+            bits.append(f"`{row}` arrives at a mode in {a['arrived']:.2f} of its episodes"
+                        + ("" if big is None else
+                           f", {big:.2f} of those at its largest mode, "
+                           f"{a['collapsed_among_arrivals']} of {a['seeds_arriving']} seeds "
+                           f"with at least {claims.COLLAPSE_SHARE:.0%} of their arrivals at "
+                           f"one mode"))
+        if bits:
+            out.append(f"* `{task}`: " + "; ".join(bits) + ".")
+    return out
+
+
+def _arrival_columns(a: dict | None) -> dict:
+    if a is None:
+        return {"arrived": "", "largest mode of arrivals": ""}
+    big = a["largest_of_arrivals"]
+    return {"arrived": f"{a['arrived']:.2f}",
+            "largest mode of arrivals": "" if big is None else f"{big:.2f}"}
 
 
 def paired(rec: dict, a: str, b: str, task: str, actions: str = "mean") -> dict | None:
