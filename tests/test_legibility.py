@@ -45,14 +45,21 @@ def test_labels_outside_the_view_and_hidden_ones_are_not_counted():
 def test_watching_warns_when_a_figure_is_drawn_and_only_then():
     legibility.watch()
     legibility.watch()   # twice: still one check per draw
-    with warnings.catch_warnings(record=True) as got:
-        warnings.simplefilter("always")
-        _crowded().canvas.draw()
-        fine, ax = plt.subplots(figsize=(4, 3))
-        ax.plot([1, 2, 3])
-        fine.canvas.draw()
+    try:
+        with warnings.catch_warnings(record=True) as got:
+            warnings.simplefilter("always")
+            _crowded().canvas.draw()
+            fine, ax = plt.subplots(figsize=(4, 3))
+            ax.plot([1, 2, 3])
+            fine.canvas.draw()
+    finally:
+        legibility.unwatch()   # the other tests draw with matplotlib's own draw
     overlaps = [w for w in got if issubclass(w.category, legibility.TickLabelOverlap)]
     assert len(overlaps) == 1 and "crowded: x labels" in str(overlaps[0].message)
+    with warnings.catch_warnings(record=True) as after:
+        warnings.simplefilter("always")
+        _crowded().canvas.draw()
+    assert not [w for w in after if issubclass(w.category, legibility.TickLabelOverlap)]
     plt.close("all")
 
 

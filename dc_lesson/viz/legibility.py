@@ -108,4 +108,12 @@ def watch() -> None:
     matplotlib.figure.Figure.draw = draw
 
 
-__all__ = ["TickLabelOverlap", "overlapping_ticks", "watch"]
+def unwatch() -> None:
+    """Stop checking drawn figures (matplotlib's own ``Figure.draw`` again)."""
+    global _original_draw
+    if _original_draw is not None:
+        matplotlib.figure.Figure.draw = _original_draw
+        _original_draw = None
+
+
+__all__ = ["TickLabelOverlap", "overlapping_ticks", "unwatch", "watch"]
