@@ -737,3 +737,16 @@ def test_arrival_separates_going_nowhere_from_covering_the_modes():
     assert table_one.arrival(lost) == {"arrived": 0.0, "largest_of_arrivals": None,
                                        "collapsed_among_arrivals": 0, "seeds_arriving": 0}
     assert table_one.arrival([{"scaled_return": 1.0}]) is None
+
+
+def test_arrival_lines_say_each_rows_arrivals_and_collapsed_seeds_per_task():
+    obs = [{"task": "reacher2", "row": "gail-coin", "seed": s,
+            "mode_shares": {"red": 0.2, "blue": 0.0, "none": 0.8}} for s in range(3)]
+    obs += [{"task": "reacher2", "row": "expert", "seed": s,
+             "mode_shares": {"red": 0.5, "blue": 0.5, "none": 0.0}} for s in range(3)]
+    lines = table_one.arrival_lines({"mean": {"observations": obs}}, ("expert", "gail-coin"))
+    assert lines == ["* `reacher2`: `expert` arrives at a mode in 1.00 of its episodes, 0.50 "
+                     "of those at its largest mode, 0 of 3 seeds with at least 80% of their "
+                     "arrivals at one mode; `gail-coin` arrives at a mode in 0.20 of its "
+                     "episodes, 1.00 of those at its largest mode, 3 of 3 seeds with at least "
+                     "80% of their arrivals at one mode."]
