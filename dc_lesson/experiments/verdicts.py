@@ -42,6 +42,8 @@ import dataclasses
 import numpy as np
 from scipy import stats as _stats
 
+from dc_lesson.experiments import limits as _limits
+
 ALPHA = 0.05
 LEVEL = 0.95
 MIN_SEEDS = 5           # fewer paired seeds than this: not judged
@@ -326,13 +328,12 @@ def count(entries, unit: str = "tasks") -> str:
 
 def evidence(claim: Claim, entries, note: str = "") -> str:
     """Each entry's difference, interval, seeds, Holm p and word.  A difference of a bounded
-    measure prints its interval clipped to the difference's limits (``report.bounds``: a
+    measure prints its interval clipped to the difference's limits (``limits.bounds``: a
     mode-TV difference lies in [-1, 1]); the word was decided on the unclipped interval."""
-    from dc_lesson.experiments import report   # lazy: report reads verdicts' t interval
-    limits = report.bounds(claim.measure, difference=True)
+    limits = _limits.bounds(claim.measure, difference=True)
     parts = []
     for e in entries:
-        lo, hi = report.clip(e[3], e[4], limits)
+        lo, hi = _limits.clip(e[3], e[4], limits)
         band = (f"[{fmt_num(lo)}, {fmt_num(hi)}]" if np.isfinite(e[3]) and np.isfinite(e[4])
                 else "(no interval)")
         p = f", p (Holm) {e[6]:.3f}" if np.isfinite(e[6]) else ""
