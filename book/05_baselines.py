@@ -430,6 +430,7 @@ if t1 is not None:
 # passing.
 
 # %%
+from dc_lesson import budget as _budget_mod
 from dc_lesson.experiments import competence as competence_report
 from dc_lesson.experiments.studies import competence as competence_study
 
@@ -437,6 +438,12 @@ print(f"keeps: final within {competence_study.KEEP_TOLERANCE} of the start on at
       f"{competence_study.KEEP_SHARE:.0%} of the seeds, no checkpoint more than "
       f"{competence_study.MAX_DIP} below it; learns: mean final at least "
       f"{competence_study.LEARN_FLOOR} from a start below {competence_study.WEAK_CEILING}")
+# the budget the stored cells ran at (the lesson budget's while none are stored)
+_study_budget = _budget_mod.get((competence_report.load() or {}).get("budget", "lesson"))
+print(f"a checkpoint scores {_study_budget.competence_curve_episodes} mean-action episodes, "
+      f"so one episode that ends at the random level moves it by up to "
+      f"{1 / _study_budget.competence_curve_episodes:.2f}: the dip rule is close to "
+      f"'no failed episode at any checkpoint'")
 print("every learner: start log-std", algorithms.base.START_LOG_STD, "and, on hopper, the fall "
       "ends a training episode; its own settings on top:")
 for name, fixes in competence_study.FIXES.items():
