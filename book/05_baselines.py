@@ -571,7 +571,7 @@ else:
         "thousandths on every weight sends a start to the floor, any learner that moves its "
         "weights that far can fall from it, whatever its algorithm; a dip there says as much "
         "about the start as about the learner. The gate's rule stays as it was declared, "
-        "and each learner's worst hopper checkpoint is read beside its start's tolerance."))
+        "and the table reads DC's worst hopper checkpoint beside its start's tolerance."))
 
 # %% [markdown]
 # ## Their rows of Table I
