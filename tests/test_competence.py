@@ -26,6 +26,25 @@ def test_a_dip_below_the_start_fails_even_when_the_end_recovers():
     assert not passed and "0.25 below" in why
 
 
+def test_a_knife_edge_start_shows_its_dips_and_judges_by_the_finals():
+    shares = [{"task": "hopper", "scale": comp.STEP_SCALE, "share": 16 / 30},
+              {"task": "hopper", "scale": 1e-3, "share": 1 / 30},
+              {"task": "cartpole", "scale": comp.STEP_SCALE, "share": 0.0},
+              {"task": "walker", "scale": comp.STEP_SCALE, "share": comp.KNIFE_EDGE_SHARE}]
+    # the share must exceed the keep rule's allowance, and only at the step's scale counts
+    assert comp.knife_edge(shares) == {"hopper"}
+    assert comp.knife_edge(None) == frozenset()
+    dipping = [run(1.0, 1.0, [0.2, 1.0])] * 10
+    assert comp.keeps(dipping)[0] is False
+    assert comp.keeps(dipping, gate_dip=False) == (True, comp.DIP_NOT_GATED)
+    # the finals rule still decides on a knife-edge task
+    ending_low = [run(1.0, 0.7, [1.0])] * 2 + [run(1.0, 1.0, [1.0])] * 8
+    assert comp.keeps(ending_low, gate_dip=False)[0] is False
+    obs = _obs("dc", "keep", "hopper", 1.0, 1.0, 10, [0.2, 1.0])
+    assert "0.80 below" in comp.gate(obs)["dc"]["reason"]
+    assert "keep on hopper" not in comp.gate(obs, frozenset({"hopper"}))["dc"]["reason"]
+
+
 def test_learning_needs_the_floor_from_a_start_that_is_weak():
     assert comp.learns([run(0.2, 0.85), run(0.1, 0.8)]) == (True, "")
     passed, why = comp.learns([run(0.2, 0.6), run(0.3, 0.7)])

@@ -39,7 +39,7 @@ def mapping(rec: dict | None = None) -> dict[str, str]:
     if rec is None:
         return {k: "has not yet shown competence — no competence study on record ("
                    "dc-lesson sweep competence)" for k in _study.LEARNERS}
-    return _study.competence(rec)
+    return _study.competence(rec, _study.stored_knife_edge())
 
 
 def resolve(competence) -> dict[str, str] | None:
@@ -67,20 +67,25 @@ def _runs(rec: dict, learner: str, part: str, task: str) -> list[dict]:
 
 def rows(rec: dict) -> list[dict]:
     """One row per (learner, part, task) with seeds on record: the seeds, the mean start and
-    final scaled return, the worst checkpoint's fall below the start, and the study's word
-    for that part on those seeds ("—" where no seed has run)."""
+    final scaled return, the worst checkpoint's fall below the start, whether that fall is
+    gated (not on a knife-edge task, :func:`~dc_lesson.experiments.studies.competence.knife_edge`
+    of the stored ``start_noise.json``), and the study's word for that part on those seeds."""
     out = []
+    knife = _study.stored_knife_edge()
     for learner in _study.LEARNERS:
-        for part, tasks, rule in (("keep", _study.KEEP_TASKS, _study.keeps),
-                                  ("learn", _study.LEARN_TASKS, _study.learns)):
+        for part, tasks in (("keep", _study.KEEP_TASKS), ("learn", _study.LEARN_TASKS)):
             for task in tasks:
                 runs = _runs(rec, learner, part, task)
+                gated = ("" if part == "learn" else
+                         "not gated: knife-edge start" if task in knife else "gated")
                 if not runs:
                     out.append({"learner": NAMES[learner], "part": part, "task": task,
                                 "seeds": 0, "start": None, "final": None, "worst dip": None,
-                                "word": "not run yet"})
+                                "dip": gated, "word": "not run yet"})
                     continue
-                ok, why = rule([{k: r[k] for k in ("start", "final", "curve")} for r in runs])
+                ok, why = _study.judge_part(
+                    part, task, [{k: r[k] for k in ("start", "final", "curve")} for r in runs],
+                    knife)
                 dip = max(r["start"] - min(r["curve"] or [r["final"]]) for r in runs)
                 word = {True: "passes", False: "fails: " + why,
                         None: "not informative: " + why}[ok]
@@ -88,7 +93,7 @@ def rows(rec: dict) -> list[dict]:
                             "seeds": len(runs),
                             "start": float(np.mean([r["start"] for r in runs])),
                             "final": float(np.mean([r["final"] for r in runs])),
-                            "worst dip": float(dip), "word": word})
+                            "worst dip": float(dip), "dip": gated, "word": word})
     return out
 
 
