@@ -330,6 +330,10 @@ def test_the_book_s_verdicts_read_the_stored_gate_by_default(monkeypatch):
         v = {x.claim: x for x in claims.verdicts(obs, shares)}[claims.GAIL_COLLAPSES.name]
         return v.per_task[0][1]
 
+    # constructed observations name no grid: the gate holds back even a passed learner ...
+    assert word({"observations": passing}) == "not judged: gail " + report.PRE_GATE
+    # ... until the grid is one made under the gate's settings
+    monkeypatch.setattr(report, "under_gate", lambda *grids: True)
     assert word({"observations": passing}) == "reproduced"
     assert word({"observations": failing}).startswith(
         "not judged: gail failed the competence gate — keep on cartpole")
@@ -372,3 +376,18 @@ def test_the_budget_is_the_latest_plateau_of_the_learners_that_learn():
     assert got[("hopper", "NDI")]["flattens at"] == 100_000       # never rose: flat at once
     assert got[("hopper", "budget")]["flattens at"] == 500_000    # NDI does not count
     assert got[("halfcheetah", "budget")]["flattens at"] is None
+
+
+def test_the_gate_vouches_only_for_grids_made_under_its_settings(monkeypatch):
+    from dc_lesson.experiments import competence as report
+    monkeypatch.setattr(report, "mapping", lambda rec=None: {"gail": "failed the gate — why"})
+    marked = {report.GRID_MARK: report.RULES}
+    assert report.resolve("stored", marked) == {"gail": "failed the gate — why"}
+    for grid in (None, {}, {report.GRID_MARK: "an older rule set"}):
+        held = report.resolve("stored", grid)
+        # a learner that passed is held back on an older grid; a failed one keeps its reason
+        assert held["dc"] == report.PRE_GATE and held["gail"] == "failed the gate — why"
+        assert set(held) == set(comp.LEARNERS)
+    assert report.under_gate(marked, marked) and not report.under_gate(marked, {})
+    assert not report.under_gate()
+    assert report.resolve({}, None) == {}      # an explicit mapping is used as given

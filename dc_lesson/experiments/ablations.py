@@ -146,8 +146,10 @@ def verdicts(recs: dict | None = None, competence: dict | str | None = "stored")
     """Each claim of :data:`claims.ABLATIONS`, judged on the stored aggregates (or ``recs``);
     one task, so each is its own family."""
     c = _claims
-    competence = _claims.competence_of(competence)
     recs = load() if recs is None else recs
+    from dc_lesson.experiments import competence as _competence   # lazy: it imports learners
+    competence = _claims.competence_of(competence, next(iter(recs.values()), None)
+                                       if _competence.under_gate(*recs.values()) else None)
     obs = observations(recs)
     judge = lambda claim, o, **kw: _verdicts.judge_claim(claim, o, [TASK], competence=competence,
                                                         **kw)

@@ -210,10 +210,12 @@ def _mode_evidence(obs, task_rows, reference_shares, n_episodes: int) -> str:
     return "; ".join(parts)
 
 
-def competence_of(competence):
-    """``competence`` of an entry point: ``"stored"`` (the default) reads the stored gate."""
+def competence_of(competence, grid: dict | None = None):
+    """``competence`` of an entry point: ``"stored"`` (the default) reads the stored gate,
+    which vouches for a learner only on a ``grid`` made under its settings
+    (:func:`competence.resolve`)."""
     from dc_lesson.experiments import competence as _competence   # lazy: it imports learners
-    return _competence.resolve(competence)
+    return _competence.resolve(competence, grid)
 
 
 def bc_growth(rec: dict, competence: dict | str | None = "stored") -> Verdict:
@@ -223,7 +225,7 @@ def bc_growth(rec: dict, competence: dict | str | None = "stored") -> Verdict:
               if r["n_demos"] == min(rec["demo_counts"]) and "scaled_return_mean" in r}
     members = [(p["task"], np.asarray(p["scaled_return_diffs"]), fewest.get(p["task"]), None)
                for p in rec["paired"] if p.get("scaled_return_diffs") is not None]
-    entries = _v.judge_family(BC_GROWS, members, competence_of(competence))
+    entries = _v.judge_family(BC_GROWS, members, competence_of(competence, rec))
     return Verdict(BC_GROWS.name, BC_GROWS.source, BC_GROWS.rule, count(entries),
                    _v.evidence(BC_GROWS, entries), BC_GROWS.reason, entries)
 
@@ -235,7 +237,7 @@ def hidden_coin_collapse(t1: dict, competence: dict | str | None = "stored") -> 
     if not any(o["row"] == "gail-coin" for o in coin):
         return None
     return judge_claim(dataclasses.replace(GAIL_COLLAPSES, a="gail-coin", b="bc-coin"), coin,
-                       measure=largest_share, competence=competence_of(competence))
+                       measure=largest_share, competence=competence_of(competence, t1))
 
 
 def floors(rec: dict | None, actions: str = "mean") -> dict:
@@ -254,7 +256,7 @@ def verdicts(obs=None, reference_shares=None, source: str = "", eval_episodes: i
     aggregate (its ``actions`` evaluation) by default, or on ``obs``.  The hopper ablations'
     are :func:`ablations.verdicts`; both together: :func:`ablations.book_verdicts` (one
     module up, since the ablations read their claims from here)."""
-    stored = obs is None
+    stored, rec = obs is None, None
     if stored:
         t1 = table1_observations(actions)
         obs, reference_shares, source = t1 if t1 is not None else ([], {}, "")
@@ -263,7 +265,7 @@ def verdicts(obs=None, reference_shares=None, source: str = "", eval_episodes: i
             eval_episodes, floor = rec["protocol"]["eval_episodes"], floors(rec, actions)
     reference_shares = reference_shares or {}
     multi = list(dict.fromkeys(o["task"] for o in obs))
-    kw = dict(competence=competence_of(competence), floors=floor)
+    kw = dict(competence=competence_of(competence, rec), floors=floor)
     out = []
     for claim in (LOWEST_DIVERGENCE, HIGHER_RETURN):
         v = judge_claim(claim, obs, multi, note=source, **kw)

@@ -42,10 +42,36 @@ def mapping(rec: dict | None = None) -> dict[str, str]:
     return _study.competence(rec, _study.stored_knife_edge())
 
 
-def resolve(competence) -> dict[str, str] | None:
-    """A verdict entry point's ``competence`` argument: :data:`STORED` -> :func:`mapping`;
-    a mapping (``{}``: judge every learner, for rules on constructed records) as given."""
-    return mapping() if competence == STORED else competence
+# A grid aggregate made under the gate's settings carries ``GRID_MARK: RULES``: its cells ran
+# each learner as the competence study ran it (``studies.competence.learner_config``: the
+# start's exploration noise, hopper's fall, the learners' fixes) at interactions the study's
+# curves chose.  The gate vouches for a learner only on such a grid: a grid made before
+# (every grid on record until issue 41's rerun) ran other settings and budgets, so there a
+# learner that passed is still "not judged".
+GRID_MARK = "competence_rules"
+RULES = "issue-38"
+PRE_GATE = ("passed the competence gate, but this grid ran before the gate's settings (the "
+            "start's exploration noise, hopper's fall, the learners' fixes, the interactions) "
+            "and waits for its rerun under them")
+
+
+def under_gate(*grids: dict | None) -> bool:
+    """Whether every one of ``grids`` (aggregates) was made under the gate's settings."""
+    return bool(grids) and all(g is not None and g.get(GRID_MARK) == RULES for g in grids)
+
+
+def resolve(competence, grid: dict | None = None) -> dict[str, str] | None:
+    """A verdict entry point's ``competence`` argument: :data:`STORED` -> :func:`mapping`
+    for a ``grid`` made under the gate's settings (:func:`under_gate`); for any other grid
+    (or none named) every RL learner is held back, a failed one with its gate's reason, a
+    passed one with :data:`PRE_GATE`.  A mapping (``{}``: judge every learner, for rules on
+    constructed records) is used as given."""
+    if competence != STORED:
+        return competence
+    gate = mapping()
+    if under_gate(grid):
+        return gate
+    return {**{k: PRE_GATE for k in _study.LEARNERS}, **gate}
 
 
 def status(rec: dict) -> str:
@@ -217,6 +243,6 @@ def sentence(rec: dict) -> str:
     return "On the cells on record, " + "; ".join(parts) + "."
 
 
-__all__ = ["NAMES", "PLATEAU_TAIL", "PLATEAU_TOLERANCE", "RESULT", "STORED", "budgets", "curves",
+__all__ = ["GRID_MARK", "NAMES", "PRE_GATE", "RULES", "under_gate", "PLATEAU_TAIL", "PLATEAU_TOLERANCE", "RESULT", "STORED", "budgets", "curves",
            "mapping", "plateau", "resolve", "gate_words", "load", "overview", "rows", "sentence",
            "status"]

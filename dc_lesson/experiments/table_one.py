@@ -222,7 +222,7 @@ def word(entry: dict | None, measure: str, rec: dict | None = None,
     if not entry or f"{measure}_diffs" not in entry:
         return f"{_verdicts.NOT_JUDGED}: not run yet"
     why = _verdicts.rows_gate((entry.get("a", ""), entry.get("b", "")),
-                              claims.competence_of(competence))
+                              claims.competence_of(competence, rec))
     if why:
         return f"{_verdicts.NOT_JUDGED}: {why}"
     if floor is None:
@@ -251,7 +251,7 @@ def controls(rec: dict, actions: str = "mean",
              competence: dict | str | None = "stored") -> list[dict]:
     """Every control on every task: the question, ``a - b`` with its interval, the word
     (Holm across the control's tasks) and, beside it, the reason it is not judged."""
-    out, floor, gate = [], claims.floors(rec, actions), claims.competence_of(competence)
+    out, floor, gate = [], claims.floors(rec, actions), claims.competence_of(competence, rec)
     for a, b, measure, question in CONTROLS:
         c = _verdicts.Claim(question, "control", measure, a, b, _verdicts.BETTER[measure],
                             question, start=None)

@@ -64,7 +64,7 @@ def verdict(entry: dict | None, measure: str, direction: int, rec: dict | None =
     if not entry or f"{measure}_diffs" not in entry:
         return f"{_verdicts.NOT_JUDGED}: not run yet"
     why = _verdicts.rows_gate((entry.get("a", ""), entry.get("b", "")),
-                              claims.competence_of(competence))
+                              claims.competence_of(competence, rec))
     if why:
         return f"{_verdicts.NOT_JUDGED}: {why}"
     floor = claims.floors(rec, actions).get(entry["task"], {}).get(measure)  # divergences

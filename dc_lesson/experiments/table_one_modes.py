@@ -90,7 +90,7 @@ def floor(rec: dict, actions: str = "mean", competence: dict | str | None = "sto
     word of :func:`verdicts.word_unpaired` for "DC's mode TV is lower than the expert's own"
     on their per-seed mode TVs (unpaired), beside each side's t interval
     (:func:`table_one.tv_band`); ``not judged`` when the aggregate has no per-seed values."""
-    out, gate = {}, V.rows_gate(("dc",), claims.competence_of(competence))
+    out, gate = {}, V.rows_gate(("dc",), claims.competence_of(competence, rec))
     for task in TASKS:
         dc, ex = _tv(rec, task, "dc", actions), _tv(rec, task, "expert", actions)
         if not dc or not ex:
@@ -144,9 +144,10 @@ def lines(rec: dict, actions: str = "mean") -> list[str]:
     return out
 
 
-def _held_back(competence) -> str | None:
-    """Why DC's mode comparisons are not judged (its learner not shown competent), or None."""
-    return V.rows_gate(("dc",), claims.competence_of(competence))
+def _held_back(competence, rec: dict | None) -> str | None:
+    """Why DC's mode comparisons on ``rec`` are not judged (its learner not shown competent
+    at the grid's settings), or None."""
+    return V.rows_gate(("dc",), claims.competence_of(competence, rec))
 
 
 def mechanism(rec: dict, actions: str = "mean", competence: dict | str | None = "stored") -> str:
@@ -155,7 +156,7 @@ def mechanism(rec: dict, actions: str = "mean", competence: dict | str | None = 
     (``dc-gailreward``).  The toy predicts the RL step alone keeps no modes; the sentence says
     whether the grid agrees, and whether the density in particular is what helps; nothing
     while DC has not shown competence (every comparison here is DC against a part of it)."""
-    why = _held_back(competence)
+    why = _held_back(competence, rec)
     if why:
         return f"Under the {actions} action, what DC's parts do to the mode TV is " \
                f"{V.NOT_JUDGED}: {why}."
@@ -204,7 +205,7 @@ def conclusion(rec: dict, actions: str = "mean", competence: dict | str | None =
     the better-trained BC, and the expert scored like a learner (unpaired).  While DC has
     not shown competence (the stored gate by default) the sentence says only that.
     """
-    why = _held_back(competence)
+    why = _held_back(competence, rec)
     if why:
         return (f"Under the {actions} action, *DC keeps more of the expert's modes* is "
                 f"{V.NOT_JUDGED}: {why}. The mode TVs above are our implementation's, shown "

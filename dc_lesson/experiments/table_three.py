@@ -244,7 +244,7 @@ def verdicts(rec: dict, competence: dict | str | None = "stored") -> list:
     BC's growth once per task (fewest against most, keyed ``"F -> M"``).  ``competence``:
     the stored competence gate by default (:func:`competence.mapping`: a learner not shown
     competent is not judged), or a mapping learner -> phrase, ``{}`` for none."""
-    competence = _claims.competence_of(competence)
+    competence = _claims.competence_of(competence, rec)
     obs = [{**o, "curve_mean": _curve_mean(o), "curve_spread": _curve_spread(o)}
            for o in _common_curves([o for o in rec["observations"] if o["row"] != "expert"])]
     obs += _lowest_other(obs)
