@@ -499,6 +499,27 @@ if gate_record is not None:
     plt.show()
 
 # %% [markdown]
+# **A standard library beside ours.** Is a learner's failure our code's, or its algorithm's at
+# this budget? imitation 1.0.1's GAIL (stable-baselines3's PPO as its generator, the library's
+# own tuned settings for hopper) ran from the very same BC starts for the same interactions,
+# scored by our evaluation (`python -m dc_lesson.perf.imitation_gail`, module docstring for
+# every setting it changed and why). A part our learner fails counts as *the algorithm's* when
+# the standard implementation does no better on at least three paired seeds (the 95% t
+# interval of ours minus theirs above minus the smallest effect); the gate then lets the
+# learner judge and says so (`competence.matches_reference`). The rule was set after one
+# reference seed of the learn part had run.
+
+# %%
+if gate_record is not None:
+    ref_rows = competence_report.reference_table(gate_record)
+    if ref_rows:
+        display(pd.DataFrame(ref_rows).set_index(["learner", "part", "task", "seed"])
+                .round(2).fillna("not run"))
+    else:
+        print("no reference run stored yet: python -m dc_lesson.perf.imitation_gail "
+              "(in a venv with imitation 1.0.1)")
+
+# %% [markdown]
 # **Where the curves flatten: the next grids' interactions.** The learn panels also say how
 # long learning takes, and the grids run again on that many interactions rather than a guess
 # (chapter 6). The rule, declared before the curves ran (`competence.plateau`): a mean curve

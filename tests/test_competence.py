@@ -391,3 +391,28 @@ def test_the_gate_vouches_only_for_grids_made_under_its_settings(monkeypatch):
     assert report.under_gate(marked, marked) and not report.under_gate(marked, {})
     assert not report.under_gate()
     assert report.resolve({}, None) == {}      # an explicit mapping is used as given
+
+
+def test_a_failure_a_standard_library_shares_is_the_algorithm_s_not_ours():
+    ours = [{"seed": s, "final": f} for s, f in enumerate([0.5, 0.55, 0.6, 0.45])]
+    worse = [{"seed": s, "final": f} for s, f in enumerate([0.15, 0.2, 0.1, 0.12])]
+    better = [{"seed": s, "final": f} for s, f in enumerate([0.9, 0.95, 0.85, 0.9])]
+    ok, said = comp.matches_reference(ours, worse)
+    assert ok and "4 paired seeds" in said
+    assert comp.matches_reference(ours, better)[0] is False
+    # too few seeds in common: not matched, and says so
+    ok, said = comp.matches_reference(ours, worse[:2])
+    assert not ok and "2 of our seeds" in said
+    # an unpaired seed of the reference does not count
+    assert not comp.matches_reference(ours[:2], worse[:2] + [{"seed": 9, "final": 0.0}])[0]
+    learn = [dict(o, row="gail", part="learn", task="hopper", start=0.02, curve=[o["final"]])
+             for o in ours]
+    refs = {("gail", "learn", "hopper"): comp.matches_reference(ours, worse)}
+    assert "learn on hopper" in comp.gate(learn)["gail"]["reason"]
+    assert "learn on hopper" not in comp.gate(learn, references=refs)["gail"]["reason"]
+    # the part passes with the reference's evidence as its reason; a kept failure stays
+    passed, why = comp.judge_part("learn", "hopper", learn, reference=refs[("gail", "learn",
+                                                                          "hopper")])
+    assert passed and why.startswith(comp.REFERENCE_MATCHED) and "paired seeds" in why
+    assert comp.judge_part("learn", "hopper", learn,
+                           reference=(False, "no"))[0] is False

@@ -39,7 +39,8 @@ def mapping(rec: dict | None = None) -> dict[str, str]:
     if rec is None:
         return {k: "has not yet shown competence — no competence study on record ("
                    "dc-lesson sweep competence)" for k in _study.LEARNERS}
-    return _study.competence(rec, _study.stored_knife_edge())
+    return _study.competence(rec, _study.stored_knife_edge(),
+                             _study.stored_references(rec.get("observations", [])))
 
 
 # A grid aggregate made under the gate's settings carries ``GRID_MARK: RULES``: its cells ran
@@ -98,6 +99,7 @@ def rows(rec: dict) -> list[dict]:
     of the stored ``start_noise.json``), and the study's word for that part on those seeds."""
     out = []
     knife = _study.stored_knife_edge()
+    refs = _study.stored_references(rec.get("observations", []))
     for learner in _study.LEARNERS:
         for part, tasks in (("keep", _study.KEEP_TASKS), ("learn", _study.LEARN_TASKS)):
             for task in tasks:
@@ -111,16 +113,25 @@ def rows(rec: dict) -> list[dict]:
                     continue
                 ok, why = _study.judge_part(
                     part, task, [{k: r[k] for k in ("start", "final", "curve")} for r in runs],
-                    knife)
+                    knife, refs.get((learner, part, task)))
                 dip = max(r["start"] - min(r["curve"] or [r["final"]]) for r in runs)
-                word = {True: "passes", False: "fails: " + why,
-                        None: "not informative: " + why}[ok]
+                word = ({True: "passes", False: "fails: " + why,
+                         None: "not informative: " + why}[ok]
+                        if not why.startswith(_study.REFERENCE_MATCHED) else
+                        AS_REFERENCE + why[len(_study.REFERENCE_MATCHED):])
                 out.append({"learner": NAMES[learner], "part": part, "task": task,
                             "seeds": len(runs),
                             "start": float(np.mean([r["start"] for r in runs])),
                             "final": float(np.mean([r["final"] for r in runs])),
                             "worst dip": float(dip), "dip": gated, "word": word})
     return out
+
+
+AS_REFERENCE = "as the reference: "   # a failed part a standard library's run matches
+
+
+def _passes(word: str) -> bool:
+    return word == "passes" or word.startswith(AS_REFERENCE)
 
 
 def gate_words(rec: dict) -> dict[str, str]:
@@ -134,7 +145,7 @@ def gate_words(rec: dict) -> dict[str, str]:
     for learner, parts in out.items():
         failed = [f"{r['part']} on {r['task']}: {r['word'][len('fails: '):]}" for r in parts
                   if r["word"].startswith("fails")]
-        open_ = [f"{r['part']} on {r['task']}" for r in parts if r["word"] != "passes"
+        open_ = [f"{r['part']} on {r['task']}" for r in parts if not _passes(r["word"])
                  and not r["word"].startswith("fails")]
         words[learner] = ("failed: " + "; ".join(failed) if failed else
                           "not yet shown: " + ", ".join(open_) + " to run" if open_ else
@@ -148,7 +159,8 @@ def overview(rec: dict) -> dict[str, dict[str, str]]:
     out: dict[str, dict[str, str]] = {}
     for r in rows(rec):
         w = r["word"]
-        short = ("passes" if w == "passes" else "fails" if w.startswith("fails") else
+        short = ("passes" if w == "passes" else "as the reference" if _passes(w) else
+                 "fails" if w.startswith("fails") else
                  "not run" if w == "not run yet" else "not informative")
         out.setdefault(r["learner"], {})[f"{r['part']}: {r['task']}"] = (
             short + (f" ({r['seeds']})" if r["seeds"] else ""))
@@ -173,6 +185,39 @@ def curves(rec: dict, part: str, task: str) -> dict[str, dict]:
                                "mean": [b[0] for b in bands], "lo": [b[1] for b in bands],
                                "hi": [b[2] for b in bands], "seeds": len(runs),
                                "start": float(np.mean([r["start"] for r in runs]))}
+    return out
+
+
+def reference_table(rec: dict) -> list[dict]:
+    """Our learner beside a standard library's implementation of its algorithm
+    (:data:`~dc_lesson.experiments.studies.competence.REFERENCES`, e.g. imitation 1.0.1's
+    GAIL by ``perf.imitation_gail``), seed by seed from the same start: each side's start,
+    final and worst checkpoint (scaled return) and seconds per million interactions of
+    training (ours: the cell's; theirs: its run's, both one thread)."""
+    out = []
+    for learner, stem in _study.REFERENCES.items():
+        for part, tasks in (("keep", _study.KEEP_TASKS), ("learn", _study.LEARN_TASKS)):
+            for task in tasks:
+                ours = {r["seed"]: r for r in _runs(rec, learner, part, task)}
+                for name in (f"{stem}_{task}.json", f"{stem}_{task}_{part}.json"):
+                    ref = report.stored(name)
+                    if not ref or ref.get("part") != part or ref.get("task") != task:
+                        continue
+                    for r in ref["rows"]:
+                        o = ours.get(r["seed"])
+                        curve = [p["scaled_return"] for p in r.get("curve", ())]
+                        row = {"learner": NAMES[learner], "part": part, "task": task,
+                               "seed": r["seed"], "reference start": r["start"],
+                               "reference final": r["final"],
+                               "reference worst": min(curve or [r["final"]]),
+                               "reference s / 1M": r["seconds_per_10k"] * 100}
+                        if o is not None:
+                            row.update({"ours start": o["start"], "ours final": o["final"],
+                                        "ours worst": min(o["curve"] or [o["final"]]),
+                                        "ours s / 1M": (o["train_seconds"] * 1e6
+                                                        / rec["steps"][part]
+                                                        if o.get("train_seconds") else None)})
+                        out.append(row)
     return out
 
 
@@ -243,6 +288,6 @@ def sentence(rec: dict) -> str:
     return "On the cells on record, " + "; ".join(parts) + "."
 
 
-__all__ = ["GRID_MARK", "NAMES", "PRE_GATE", "RULES", "under_gate", "PLATEAU_TAIL", "PLATEAU_TOLERANCE", "RESULT", "STORED", "budgets", "curves",
+__all__ = ["AS_REFERENCE", "reference_table", "GRID_MARK", "NAMES", "PRE_GATE", "RULES", "under_gate", "PLATEAU_TAIL", "PLATEAU_TOLERANCE", "RESULT", "STORED", "budgets", "curves",
            "mapping", "plateau", "resolve", "gate_words", "load", "overview", "rows", "sentence",
            "status"]
