@@ -600,8 +600,11 @@ else:
             if o["row"] == "ppo" and o["part"] == "keep" and o["task"] == "hopper"]
     base_fell = sum(o["start"] - min(o["curve"] or [o["final"]]) > competence_study.MAX_DIP
                     for o in base)
+    base_ended = sum(o["final"] < o["start"] - competence_study.KEEP_TOLERANCE for o in base)
     base_said = (f", PPO on the task's own reward included (on hopper it fell more than the "
-                 f"gate's dip on {base_fell} of its {len(base)} seeds on record)" if base_fell
+                 f"gate's dip on {base_fell} of its {len(base)} seeds on record, and ended "
+                 f"more than {competence_study.KEEP_TOLERANCE} below its start on {base_ended})"
+                 if base_fell
                  else f" (though PPO on the task's own reward never fell that far on hopper, "
                       f"{len(base)} seeds on record)" if base else "")
     display(Markdown(
