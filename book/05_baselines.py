@@ -515,6 +515,12 @@ if gate_record is not None:
     if ref_rows:
         display(pd.DataFrame(ref_rows).set_index(["learner", "part", "task", "seed"])
                 .round(2).fillna("not run"))
+        matched = competence_study.stored_references(gate_record["observations"])
+        display(Markdown("The rule on these runs: " + "; ".join(
+            f"{competence_report.NAMES[learner]}, {part} on {task}: "
+            + ("the reference does no better, so a failure there is the algorithm's — "
+               if ok else "not matched — ") + said
+            for (learner, part, task), (ok, said) in matched.items()) + "."))
     else:
         print("no reference run stored yet: python -m dc_lesson.perf.imitation_gail "
               "(in a venv with imitation 1.0.1)")
