@@ -113,6 +113,17 @@ TERMINATE = {"hopper": "hopper-fall"}
 # 0.01) still dropped it 0.63 and 0.33 at a checkpoint on two seeds; with lambda 0 as well,
 # at most 0.17 on all four. NDI here is then its density reward log q(s, a) alone: the
 # book says so wherever NDI is judged (a bounded bonus that cannot dominate is still open).
+# GAIL after the study's cells (fifth week; probes of one config change on the study's own
+# cells, not stored): its cells fail cartpole keep (2 of 10 seeds end below, checkpoints down
+# to 0.26) and hopper learn (mean 0.53; curves reach 0.9-0.99 around 1.3M, then fall).  A
+# gradient penalty of 10 fixes learning (hopper learn seeds 1 / 3: 0.94 / 0.93, no late fall)
+# but breaks keeping (cartpole keep, 1M, seeds 6 / 0: checkpoints down to 0.02 / 0.33);
+# imitation 1.0.1's tuned hopper PPO settings (lr 4.4e-5, clip 0.1, 20 epochs, gamma 0.995,
+# GAE 0.98, entropy 0.00126) keep (cartpole keep, 400k, seeds 6 / 2 / 0: worst 0.79 / 1.00 /
+# 0.81, finals 1.00) but barely learn (hopper learn seed 1: 0.40), as imitation's own GAIL
+# (0.67 / 0.15 / 0.16 on seeds 0-2); both together learn (seed 1: 0.86) and fall from a
+# start again (cartpole keep 400k, seed 0: final 0.89, worst 0.62).  No setting tried passes
+# both parts, so none is adopted: GAIL stays as it is, failing the gate, and the book says so.
 FIXES: dict[str, dict] = {
     "gail": {"expert_noise": "learner", "ppo.norm_adv": False},
     "ndi": {"entropy_coef": 0.0, "ppo.norm_adv": False},
