@@ -477,12 +477,15 @@ if gate_record is not None:
     panels = [(p, t) for p, ts in (("keep", competence_study.KEEP_TASKS),
                                    ("learn", competence_study.LEARN_TASKS)) for t in ts]
     fig, axes = plt.subplots(1, len(panels), figsize=(11, 3.2), sharey=True)
+    # one colour per learner in every panel, and one legend for all of them
+    colour = {name: plt.cm.tab10(i) for i, name in enumerate(competence_report.NAMES.values())}
+    legend = {}
     for ax, (part, task) in zip(axes, panels):
         drawn = competence_report.curves(gate_record, part, task)
         for name, c in drawn.items():
             steps = np.array(c["steps"]) / 1e6
-            line, = ax.plot(steps, c["mean"], label=f"{name} ({c['seeds']})")
-            ax.fill_between(steps, c["lo"], c["hi"], color=line.get_color(), alpha=0.15)
+            legend[name], = ax.plot(steps, c["mean"], color=colour[name], label=name)
+            ax.fill_between(steps, c["lo"], c["hi"], color=colour[name], alpha=0.15)
         if drawn:
             ax.axhline(np.mean([c["start"] for c in drawn.values()]), color="grey", ls="--",
                        lw=1)
@@ -491,11 +494,10 @@ if gate_record is not None:
         ax.set_title(f"{part}: {task}", fontsize=10)
         ax.set_xlabel("interactions (millions)")
     axes[0].set_ylabel("scaled return (mean action)")
-    drawn_axes = [ax for ax in axes if ax.get_legend_handles_labels()[0]]
-    if drawn_axes:     # one legend, on the first panel with curves
-        drawn_axes[0].legend(fontsize=7, loc="lower right", title="learner (seeds)",
-                             title_fontsize=7)
     fig.tight_layout()
+    if legend:    # seeds per panel are in the table above
+        fig.legend(list(legend.values()), list(legend), loc="upper center", fontsize=8,
+                   ncol=len(legend), bbox_to_anchor=(0.5, 1.08), frameon=False)
     plt.show()
 
 # %% [markdown]
