@@ -195,14 +195,11 @@ def reference_table(rec: dict) -> list[dict]:
     final and worst checkpoint (scaled return) and seconds per million interactions of
     training (ours: the cell's; theirs: its run's, both one thread)."""
     out = []
-    for learner, stem in _study.REFERENCES.items():
+    for learner in _study.REFERENCES:
         for part, tasks in (("keep", _study.KEEP_TASKS), ("learn", _study.LEARN_TASKS)):
             for task in tasks:
                 ours = {r["seed"]: r for r in _runs(rec, learner, part, task)}
-                for name in (f"{stem}_{task}.json", f"{stem}_{task}_{part}.json"):
-                    ref = report.stored(name)
-                    if not ref or ref.get("part") != part or ref.get("task") != task:
-                        continue
+                for ref in _study.reference_records(learner, part, task):
                     for r in ref["rows"]:
                         o = ours.get(r["seed"])
                         curve = [p["scaled_return"] for p in r.get("curve", ())]

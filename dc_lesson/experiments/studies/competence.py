@@ -244,22 +244,25 @@ REFERENCE_MIN_SEEDS = 3
 REFERENCE_MARGIN = 0.05
 
 
-def reference_rows(learner: str, part: str, task: str) -> list[dict]:
-    """The stored reference runs of ``learner``'s algorithm on ``part`` and ``task`` (rows of
-    ``seed``, ``start``, ``final``), [] where none is stored."""
-    stem = REFERENCES.get(learner)
-    if stem is None:
-        return []
-    rows = []
-    for name in (f"{stem}_{task}.json", f"{stem}_{task}_{part}.json"):
+def reference_records(learner: str, part: str, task: str) -> list[dict]:
+    """The stored reference result files of ``learner``'s algorithm on ``part`` and ``task``
+    (``STEM_TASK.json`` or ``STEM_TASK_PART.json`` whose own ``part`` and ``task`` agree)."""
+    stem, out = REFERENCES.get(learner), []
+    for name in ((f"{stem}_{task}.json", f"{stem}_{task}_{part}.json") if stem else ()):
         try:
             rec = _storage.read_result(name)
         except FileNotFoundError:
             continue
         if rec.get("part") == part and rec.get("task") == task:
-            rows += [{"seed": r["seed"], "start": r["start"], "final": r["final"]}
-                     for r in rec.get("rows", ())]
-    return rows
+            out.append(rec)
+    return out
+
+
+def reference_rows(learner: str, part: str, task: str) -> list[dict]:
+    """The stored reference runs of ``learner``'s algorithm on ``part`` and ``task`` (rows of
+    ``seed``, ``start``, ``final``), [] where none is stored."""
+    return [{"seed": r["seed"], "start": r["start"], "final": r["final"]}
+            for rec in reference_records(learner, part, task) for r in rec.get("rows", ())]
 
 
 def matches_reference(ours: list[dict], reference: list[dict]) -> tuple[bool, str]:
@@ -410,5 +413,6 @@ STUDY = cells.Study(NAME, "every RL learner keeps a perfect start and learns fro
 
 __all__ = ["DIP_NOT_GATED", "KEEP_TASKS", "KNIFE_EDGE_SHARE", "LEARNERS", "LEARN_TASKS", "NAME",
            "STEP_SCALE", "STUDY", "aggregate", "cells_at", "competence", "gate", "judge_part",
-           "keeps", "knife_edge", "learns", "matches_reference", "reference_rows", "run_cell",
+           "keeps", "knife_edge", "learns", "matches_reference", "reference_records",
+           "reference_rows", "run_cell",
            "stored_knife_edge", "stored_references"]
