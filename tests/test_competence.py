@@ -389,6 +389,9 @@ def test_the_gate_vouches_only_for_grids_made_under_its_settings(monkeypatch):
         assert held["dc"] == report.PRE_GATE and held["gail"] == "failed the gate — why"
         assert set(held) == set(comp.LEARNERS)
     assert report.under_gate(marked, marked) and not report.under_gate(marked, {})
+    # a verdict that reads several grids (the hopper ablations) needs every one marked
+    assert report.resolve("stored", marked, {})["dc"] == report.PRE_GATE
+    assert "dc" not in report.resolve("stored", marked, marked)
     assert not report.under_gate()
     assert report.resolve({}, None) == {}      # an explicit mapping is used as given
 

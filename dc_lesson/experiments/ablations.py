@@ -147,9 +147,7 @@ def verdicts(recs: dict | None = None, competence: dict | str | None = "stored")
     one task, so each is its own family."""
     c = _claims
     recs = load() if recs is None else recs
-    from dc_lesson.experiments import competence as _competence   # lazy: it imports learners
-    competence = _claims.competence_of(competence, next(iter(recs.values()), None)
-                                       if _competence.under_gate(*recs.values()) else None)
+    competence = _claims.competence_of(competence, *recs.values())
     obs = observations(recs)
     judge = lambda claim, o, **kw: _verdicts.judge_claim(claim, o, [TASK], competence=competence,
                                                         **kw)

@@ -210,12 +210,12 @@ def _mode_evidence(obs, task_rows, reference_shares, n_episodes: int) -> str:
     return "; ".join(parts)
 
 
-def competence_of(competence, grid: dict | None = None):
+def competence_of(competence, *grids: dict | None):
     """``competence`` of an entry point: ``"stored"`` (the default) reads the stored gate,
-    which vouches for a learner only on a ``grid`` made under its settings
+    which vouches for a learner only on ``grids`` made under its settings
     (:func:`competence.resolve`)."""
     from dc_lesson.experiments import competence as _competence   # lazy: it imports learners
-    return _competence.resolve(competence, grid)
+    return _competence.resolve(competence, *grids)
 
 
 def bc_growth(rec: dict, competence: dict | str | None = "stored") -> Verdict:

@@ -61,16 +61,17 @@ def under_gate(*grids: dict | None) -> bool:
     return bool(grids) and all(g is not None and g.get(GRID_MARK) == RULES for g in grids)
 
 
-def resolve(competence, grid: dict | None = None) -> dict[str, str] | None:
+def resolve(competence, *grids: dict | None) -> dict[str, str] | None:
     """A verdict entry point's ``competence`` argument: :data:`STORED` -> :func:`mapping`
-    for a ``grid`` made under the gate's settings (:func:`under_gate`); for any other grid
-    (or none named) every RL learner is held back, a failed one with its gate's reason, a
-    passed one with :data:`PRE_GATE`.  A mapping (``{}``: judge every learner, for rules on
-    constructed records) is used as given."""
+    when every one of ``grids`` (the aggregates the verdict reads) was made under the gate's
+    settings (:func:`under_gate`); otherwise (or with none named) every RL learner is held
+    back, a failed one with its gate's reason, a passed one with :data:`PRE_GATE`.  A
+    mapping (``{}``: judge every learner, for rules on constructed records) is used as
+    given."""
     if competence != STORED:
         return competence
     gate = mapping()
-    if under_gate(grid):
+    if under_gate(*grids):
         return gate
     return {**{k: PRE_GATE for k in _study.LEARNERS}, **gate}
 
@@ -285,6 +286,7 @@ def sentence(rec: dict) -> str:
     return "On the cells on record, " + "; ".join(parts) + "."
 
 
-__all__ = ["AS_REFERENCE", "reference_table", "GRID_MARK", "NAMES", "PRE_GATE", "RULES", "under_gate", "PLATEAU_TAIL", "PLATEAU_TOLERANCE", "RESULT", "STORED", "budgets", "curves",
-           "mapping", "plateau", "resolve", "gate_words", "load", "overview", "rows", "sentence",
-           "status"]
+__all__ = ["AS_REFERENCE", "GRID_MARK", "NAMES", "PLATEAU_TAIL", "PLATEAU_TOLERANCE", "PRE_GATE",
+           "RESULT", "RULES", "STORED", "budgets", "curves", "gate_words", "load", "mapping",
+           "overview", "plateau", "reference_table", "resolve", "rows", "sentence", "status",
+           "under_gate"]

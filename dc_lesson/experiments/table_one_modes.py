@@ -90,7 +90,7 @@ def floor(rec: dict, actions: str = "mean", competence: dict | str | None = "sto
     word of :func:`verdicts.word_unpaired` for "DC's mode TV is lower than the expert's own"
     on their per-seed mode TVs (unpaired), beside each side's t interval
     (:func:`table_one.tv_band`); ``not judged`` when the aggregate has no per-seed values."""
-    out, gate = {}, V.rows_gate(("dc",), claims.competence_of(competence, rec))
+    out, gate = {}, _held_back(competence, rec)
     for task in TASKS:
         dc, ex = _tv(rec, task, "dc", actions), _tv(rec, task, "expert", actions)
         if not dc or not ex:
