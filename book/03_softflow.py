@@ -633,8 +633,9 @@ best = _flow_fit.cheapest_within(ff["summary"], ff["tolerance"])
 row = next(x for x in ff["summary"] if x["variant"] == best)
 display(Markdown(
     f"The cheapest variant no worse than the stored fit by more than {ff['tolerance']} nats "
-    f"on any seed is **{best}**, {row['speedup']:.1f} times cheaper. DC's settings "
-    f"`flow_step`, `reward_step`, `reward_nodes` and `flow_tanh` name these choices; "
+    f"on any seed is **{best}**, {row['speedup']:.1f} times cheaper. The fields `step_size`, "
+    f"`eval_step_size`, `eval_quadrature` and `tanh` of DC's flow settings (`DCConfig.flow`) "
+    f"name these choices; "
     f"`dc.STORED_NUMERICS` holds the earlier ones, and every DC cell of the book is computed "
     f"with the defaults of the revision its record names."))
 

@@ -301,8 +301,8 @@ def _tiny(name, total_steps=512, seed=3):
     if name == "pwil":
         return pwil.PWILConfig(ppo=_tiny_ppo(total_steps), value_warmup=1, seed=seed)
     if name == "ndi":
-        return ndi.NDIConfig(ppo=_tiny_ppo(total_steps), flow_pairs=200, flow_iterations=3,
-                             flow_hidden=(8, 8), value_warmup=1, seed=seed)
+        return ndi.NDIConfig(ppo=_tiny_ppo(total_steps), flow_pairs=200, value_warmup=1,
+                             seed=seed).with_flow(iterations=3, hidden=(8, 8))
     return gpril.GPRILConfig(n_envs=2, n_steps=64, total_steps=total_steps, model_steps=2,
                              policy_steps=2, model_batch=32, policy_batch=32,
                              flow_hidden=(8, 8), seed=seed)

@@ -14,9 +14,9 @@ from dc_lesson.nn import fast
 from dc_lesson.nn.policies import PolicyFileError
 
 TASK = "reacher1"
-TINY = dc.DCConfig(loops=2, iterations=2, flow_states=200, flow_iterations=4,
-                   flow_refit_iterations=3, flow_hidden=(16, 16), bc_steps=2, bc_batch_size=32,
-                   seed=3).with_ppo(n_envs=2, n_steps=40, n_epochs=2, n_minibatches=4)
+TINY = dc.DCConfig(loops=2, iterations=2, flow_states=200, flow_refit_iterations=3,
+                   bc_steps=2, bc_batch_size=32, seed=3).with_ppo(
+    n_envs=2, n_steps=40, n_epochs=2, n_minibatches=4).with_flow(iterations=4, hidden=(16, 16))
 
 
 def _three(r):
@@ -98,7 +98,7 @@ def test_with_bc_off_an_iteration_is_a_ppo_step_averaged_with_its_start(start):
         rewards, batch.values, batch.next_values, batch.dones, config.ppo.gamma, config.ppo.gae_lambda)
     ref_gen = torch.Generator()
     ref_gen.set_state(gen.get_state())
-    ppo.ppo_update(ref_pi, ref_v, ref_opt, ref_batch, config.ppo_config(), ref_gen)
+    ppo.ppo_update(ref_pi, ref_v, ref_opt, ref_batch, config.ppo_config, ref_gen)
 
     dc.parameter_averaging(learner, batch, rewards, obs, act, config, gen)
     expected = (start_params + dc.flat(ref_pi.parameters())) / 2
@@ -237,8 +237,8 @@ def test_dc_beats_the_random_policy_on_reacher1():
     from test_ppo import permutation_p_value
     torch.set_num_threads(1)
     policy, demos, _ = bc.warm_start(TASK, 3, seed=1, max_epochs=30)
-    config = dc.DCConfig(loops=2, iterations=12, flow_states=2000, flow_iterations=100,
-                         flow_refit_iterations=30, seed=1).with_ppo(n_envs=4, n_steps=250)
+    config = dc.DCConfig(loops=2, iterations=12, flow_states=2000, flow_refit_iterations=30,
+                         seed=1).with_ppo(n_envs=4, n_steps=250).with_flow(iterations=100)
     pi, _, log = _three(dc.train(TASK, demos, config, policy=policy, progress=False))
     learned = evaluation.evaluate_policy(TASK, pi, demos, n_episodes=10)
     rand = rollout.collect(TASK, rollout.RandomPolicy(TASK, 0), 10, seed=evaluation.EVAL_SEED,
@@ -284,22 +284,52 @@ def test_the_preset_spends_the_budgets_interactions():
 
 
 def test_the_flows_numerics_are_settings_that_reach_the_fit_and_the_reward():
-    """``flow_step``, ``reward_step``, ``reward_nodes`` and ``flow_tanh`` reach the fit and
-    the reward and are in the JSON: the stored runs' numerics (0.25, 0.25, 4, torch) hash
+    """P_w's step sizes, nodes and tanh are settings of ``DCConfig.flow`` that reach the fit
+    and are in the JSON under the flat names every stored cell was listed with
+    (``dc.FLOW_STORED_NAMES``): the stored runs' numerics (0.25, 0.25, 4, torch) hash
     differently from today's defaults (0.5, 0.5, 3, numpy), so no cell of the one is taken for
     the other."""
     import json as _json
     from dc_lesson.experiments.studies import table3 as _t3
     today = _t3.learner_config("dc", budget.get("lesson"), "hopper", 0)
     got = _json.loads(today.to_json())
-    assert {k: got[k] for k in dc.STORED_NUMERICS} == {
+    assert {k: got[k] for k in ("flow_step", "reward_step", "reward_nodes", "flow_tanh")} == {
         "flow_step": 0.5, "reward_step": 0.5, "reward_nodes": 3, "flow_tanh": "numpy"}
-    flow = today.flow_config()
+    flow = today.flow
     assert (flow.step_size, flow.eval_step_size, flow.eval_quadrature, flow.tanh) == (
         0.5, 0.5, 3, "numpy")
-    stored = dataclasses.replace(today, **dc.STORED_NUMERICS)
-    assert {k: _json.loads(stored.to_json())[k] for k in dc.STORED_NUMERICS} == \
-        dc.STORED_NUMERICS and stored.to_json() != today.to_json()
+    stored = today.with_flow(**dc.STORED_NUMERICS)
+    stored_names = {v: k for k, v in dc.FLOW_STORED_NAMES.items()}
+    assert {k: _json.loads(stored.to_json())[stored_names[k]] for k in dc.STORED_NUMERICS} \
+        == dc.STORED_NUMERICS and stored.to_json() != today.to_json()
     for name in dc.STORED_NUMERICS:
         with pytest.raises(ValueError, match=name):
-            dataclasses.replace(today, **{name: "fast" if name == "flow_tanh" else 0})
+            today.with_flow(**{name: "fast" if name == "tanh" else 0})
+
+
+def test_flow_settings_nest_and_store_in_the_flat_form():
+    """``DCConfig.flow`` is SoftFlow's config: a default one stores exactly the flat names of
+    the cells listed before the nesting, any other flow setting joins the JSON under "flow" (a
+    new cell, never a reused one), and a seed of its own is refused (DC's seed decides)."""
+    import json as _json
+    cfg = dc.DCConfig()
+    d = _json.loads(cfg.to_json())
+    assert "flow" not in d and set(dc.FLOW_STORED_NAMES) <= set(d)
+    assert d["flow_iterations"] == cfg.flow.iterations == 300
+    changed = _json.loads(cfg.with_flow(batch_size=128).to_json())
+    assert changed["flow"] == {"batch_size": 128}
+    with pytest.raises(ValueError, match="flow.seed"):
+        cfg.with_flow(seed=4)
+    with pytest.raises(TypeError, match="SoftFlowConfig"):
+        dataclasses.replace(cfg, flow={"iterations": 3})
+
+
+def test_ppo_settings_dc_sets_itself_are_refused_not_ignored():
+    """DC's one rate and clip reach both copies; a ``ppo`` that sets them otherwise (or
+    anneals) is refused with the field to set, never silently overridden."""
+    cfg = dc.DCConfig()
+    for name, value in (("lr", 1e-3), ("max_grad_norm", 1.0), ("anneal_lr", True)):
+        with pytest.raises(ValueError, match=f"ppo.{name}"):
+            cfg.with_ppo(**{name: value})
+    assert dc.DCConfig(lr=1e-4).ppo_config.lr == 1e-4
+    assert dc.DCConfig(lr=1e-4).with_ppo(lr=1e-4).ppo_config.lr == 1e-4

@@ -38,18 +38,18 @@ def test_each_variant_is_the_stored_numerics_but_for_its_own_change(variant):
     b = budget.get("lesson")
     arms = dc_fit.arms(b, 3, variant)
     today, cheaper = arms["today"], arms["cheaper"]
-    assert today == dataclasses.replace(dc.preset(b, 3), **dc.STORED_NUMERICS)
-    flow = today.flow_config()
+    assert today == dc.preset(b, 3).with_flow(**dc.STORED_NUMERICS)
+    flow = today.flow
     assert (flow.step_size, flow.eval_step_size, flow.eval_quadrature, flow.tanh) == (
         0.25, 0.25, 4, "torch")
-    assert dataclasses.replace(cheaper, **dc.STORED_NUMERICS) == today
+    assert cheaper.with_flow(**dc.STORED_NUMERICS) == today
     if variant == "defaults":           # DC as it is: its own numerics, NumPy's tanh
-        assert cheaper == dc.preset(b, 3) and cheaper.flow_config().tanh == "numpy"
+        assert cheaper == dc.preset(b, 3) and cheaper.flow.tanh == "numpy"
     else:                               # the stored numerics with one change, torch's tanh
         want = dict(dc.STORED_NUMERICS, **dc_fit.VARIANTS[variant])
-        flow = cheaper.flow_config()
+        flow = cheaper.flow
         assert (flow.step_size, flow.eval_step_size, flow.tanh) == (
-            want["flow_step"], want["reward_step"], "torch")
+            want["step_size"], want["eval_step_size"], "torch")
 
 
 def test_the_stored_arm_fits_with_torchs_tanh_and_the_defaults_with_numpys(monkeypatch):

@@ -78,12 +78,13 @@ def test_the_dc_stored_run_trains_todays_dc_with_the_stored_numerics(name, numer
         exec(compile(runs._SNIPPET, "perf-runs-snippet", "exec"), {})
     finally:
         torch.set_num_threads(threads)      # the snippet pins one thread for its own process
-    got = {k: getattr(seen["cfg"], k) for k in dc.STORED_NUMERICS}
-    today = {k: getattr(dc.DCConfig(), k) for k in dc.STORED_NUMERICS}
+    got = {k: getattr(seen["cfg"].flow, k) for k in dc.STORED_NUMERICS}
+    today = {k: getattr(dc.DCConfig().flow, k) for k in dc.STORED_NUMERICS}
     assert got == (dc.STORED_NUMERICS if numerics == "stored" else today)
     assert today != dc.STORED_NUMERICS       # else the two runs would time the same thing
     printed = json.loads(capsys.readouterr().out)
-    assert {k: printed["config"][k] for k in got} == got
+    stored_names = {v: k for k, v in dc.FLOW_STORED_NAMES.items()}   # the JSON's flat names
+    assert {k: printed["config"][stored_names[k]] for k in got} == got
 
 
 def test_the_speed_history_is_in_perf_docs_and_chapter_00_only_points_there():

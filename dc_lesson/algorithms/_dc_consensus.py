@@ -150,7 +150,7 @@ def local_steps(learner: Learner, bc_copy: GaussianPolicy, batch, rewards: torch
         batch.advantages, batch.returns = compute_gae(rewards, batch.values, batch.next_values,
                                                       batch.dones, c.ppo.gamma, c.ppo.gae_lambda,
                                                       batch.terminals)
-        ppo_terms = ppo_update(L.pi_prime, L.value_fn, L.opt_ppo, batch, c.ppo_config(),
+        ppo_terms = ppo_update(L.pi_prime, L.value_fn, L.opt_ppo, batch, c.ppo_config,
                                generator, extra_loss=prox_ppo)
         out.update({f"ppo_{k}": v for k, v in ppo_terms.items()})
     out["pi_pi_prime_l1"] = float((flat(policy_parameters(bc_copy))

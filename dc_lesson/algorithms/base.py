@@ -25,6 +25,7 @@ import numpy as np
 import torch
 
 from dc_lesson import tasks as _tasks
+from dc_lesson.density.softflow import SoftFlowConfig
 from dc_lesson.nn.checkpoint import PolicyFileError, atomic_torch_save, load_checked
 
 
@@ -81,6 +82,34 @@ def unset_dropped(d: dict, names=("start_log_std", "value_warmup")) -> dict:
     """``d`` without the fields in ``names`` whose value is None: a knob added after a study's
     cells were listed names them only when set, so the stored cells keep their identity."""
     return {k: v for k, v in d.items() if not (k in names and v is None)}
+
+
+def check_flow(config) -> None:
+    """A learner config's nested flow settings (``config.flow``): SoftFlow's config, with no
+    seed of its own (the fit takes a stream of the learner's ``seed``: refused, not ignored)."""
+    name = type(config).__name__
+    if not isinstance(config.flow, SoftFlowConfig):
+        raise TypeError(f"{name}.flow must be a softflow.SoftFlowConfig, got {type(config.flow)}")
+    if config.flow.seed != 0:
+        raise ValueError(f"{name}.flow.seed is not read: the flow's fit takes a stream of "
+                         f"{name}.seed; set that instead")
+
+
+def stored_flow(flow: dict, names: dict[str, str], default) -> dict:
+    """A learner's nested flow settings (``dataclasses.asdict`` of a SoftFlowConfig) in the
+    flat form its stored cells were listed with: each field of ``names`` (stored name -> field)
+    under its stored name, and under ``"flow"`` only the fields that differ from ``default``
+    (never the seed, which the learner's own seed decides).  A default flow therefore stores
+    exactly the flat names, and the cells listed before the nesting keep their identity; a
+    change of any other flow setting still makes a new cell."""
+    flow = json.loads(json.dumps(flow))   # tuples as lists, as the stored JSON has them
+    out = {stored: flow[field] for stored, field in names.items()}
+    kept = set(names.values()) | {"seed"}
+    base = json.loads(json.dumps(dataclasses.asdict(default)))
+    rest = {k: v for k, v in flow.items() if k not in kept and v != base[k]}
+    if rest:
+        out["flow"] = rest
+    return out
 
 
 class LearnerInputError(ValueError):

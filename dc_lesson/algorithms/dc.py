@@ -90,16 +90,17 @@ The paper's averaging is this with u = 0 and x_i reset to z each iteration.
   clip 0.1, for 1,000 iterations; at our smaller budgets 3e-4 and PPO's clip of 0.5).
 * *P_w*: SoftFlow with the library's defaults except a fixed-step rk4 training solver (several
   times cheaper than dopri5, and the reward is evaluated with rk4 too).  The cheapest solver
-  settings that keep what DC learns (issue 14): training steps of 0.5 (``flow_step``: two rk4
-  steps; held-out NLL no worse than at 0.25, ``dc-lesson perf flow-fit``), the reward's z at
-  steps of at most 0.5 between the nodes of a 3-point Gauss-Legendre rule for the trace
-  integral (``reward_step``, ``reward_nodes``; on held-out expert states, against the
-  reference solver, about 0.04 nats mean error, 0.24 at most, and a rank correlation of 0.99,
-  the order being what the scaled reward reads), and the flow's tanh by NumPy's kernel
-  (``flow_tanh``; ``density._trace``).  Runs before 2026-12-04 used steps of 0.25, 4 nodes
+  settings that keep what DC learns (issue 14): training steps of 0.5 (``flow.step_size``: two
+  rk4 steps; held-out NLL no worse than at 0.25, ``dc-lesson perf flow-fit``), the reward's z
+  at steps of at most 0.5 between the nodes of a 3-point Gauss-Legendre rule for the trace
+  integral (``flow.eval_step_size``, ``flow.eval_quadrature``; on held-out expert states,
+  against the reference solver, about 0.04 nats mean error, 0.24 at most, and a rank
+  correlation of 0.99, the order being what the scaled reward reads), and the flow's tanh by
+  NumPy's kernel
+  (``flow.tanh``; ``density._trace``).  Runs before 2026-12-04 used steps of 0.25, 4 nodes
   and torch's tanh (:data:`STORED_NUMERICS`); ``dc-lesson perf dc-fit --variant defaults``
   compares the two over ten seeds.  Fitted on up to ``flow_states`` expert states in loop 0
-  (``flow_iterations`` steps), refitted in later loops on the same number of expert and
+  (``flow.iterations`` steps), refitted in later loops on the same number of expert and
   learner states each (``flow_refit_iterations`` steps, a fresh Adam; the standardisation
   stays the first fit's, so rewards stay comparable across loops).
   Learner states for a refit come from ``n_envs`` fresh episodes of the stochastic policy, which
@@ -160,10 +161,32 @@ _DC_PPO = PPOConfig(n_envs=8, n_steps=250, n_epochs=4, n_minibatches=8, clip_coe
                     anneal_lr=False)
 
 
-# The flow's numerics of every DC run before 2026-12-04; perf dc-fit and perf runs compare
-# today's defaults with them.
-STORED_NUMERICS = {"flow_step": 0.25, "reward_step": 0.25, "reward_nodes": 4,
-                   "flow_tanh": "torch"}
+# P_w's settings in DC: SoftFlow's defaults but for 300 steps of a fixed-step rk4 fit at step
+# 0.5, the reward's solve at steps of at most 0.5 with a 3-node trace rule, and NumPy's tanh
+# (the module docstring gives the measurements behind each).
+_DC_FLOW = _softflow.SoftFlowConfig(hidden=(64, 64, 64), sigma_max=0.1, lr=1e-3, iterations=300,
+                                    solver="rk4", step_size=0.5, eval_step_size=0.5,
+                                    eval_quadrature=3, tanh="numpy")
+
+# The flow's numerics of every DC run before 2026-12-04 (changes to ``DCConfig.flow``); perf
+# dc-fit and perf runs compare today's defaults with them.
+STORED_NUMERICS = {"step_size": 0.25, "eval_step_size": 0.25, "eval_quadrature": 4,
+                   "tanh": "torch"}
+
+# The stored form of ``DCConfig.flow``: every cell listed before the flow's settings were nested
+# names them by these flat names (stored name -> SoftFlowConfig field), so ``to_json`` keeps
+# them and the stored cells keep their identity; any other flow setting that differs from
+# ``_DC_FLOW`` is stored under "flow".
+FLOW_STORED_NAMES = {"flow_iterations": "iterations", "flow_hidden": "hidden", "flow_lr": "lr",
+                     "sigma_max": "sigma_max", "flow_step": "step_size",
+                     "reward_step": "eval_step_size", "reward_nodes": "eval_quadrature",
+                     "flow_tanh": "tanh"}
+
+# PPO settings DC sets itself, each for a reason; a ``ppo`` that sets one otherwise is refused,
+# never silently overridden.
+PPO_SET_BY_DC = {"lr": "DCConfig.lr, one AdamW rate for both copies",
+                 "max_grad_norm": "DCConfig.max_grad_norm, one clip for both steps",
+                 "anneal_lr": "False: DC's rate is not annealed"}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -174,16 +197,11 @@ class DCConfig:
     loops: int = 2               # L: loop 0 (P_w on expert states) plus L - 1 refit loops
     iterations: int = 50         # N: Algorithm 2 iterations per loop
     flow_states: int = 4000      # expert states per fit (and as many learner states in a refit)
-    flow_iterations: int = 300   # gradient steps of P_w's first fit (loop 0)
     flow_refit_iterations: int = 100   # gradient steps of each later refit
-    flow_hidden: tuple[int, ...] = (64, 64, 64)   # SoftFlow's concat-squash widths
-    flow_lr: float = 1e-3        # SoftFlow's Adam learning rate
-    sigma_max: float = 0.1       # SoftFlow's noise range (standardised states)
-    flow_step: float = 0.5       # rk4 step of P_w's training solve (0.25 costs twice as
-    #                              much for a held-out NLL no better; dc-lesson perf flow-fit)
-    reward_step: float = 0.5     # largest rk4 step of log P_w's evaluation, the reward
-    reward_nodes: int = 3        # Gauss-Legendre nodes of the reward's trace integral
-    flow_tanh: str = "numpy"     # the flow's tanh kernel (density._trace): NumPy's or torch's
+    # P_w: SoftFlow's own settings, nested (the module docstring says why each differs from
+    # SoftFlow's defaults).  ``flow.iterations`` is loop 0's fit; ``flow.seed`` is not read
+    # (the fit's seed is a stream of DC's ``seed``), so a non-zero one is refused.
+    flow: _softflow.SoftFlowConfig = dataclasses.field(default_factory=lambda: _DC_FLOW)
     # Algorithm 2
     update: str = "average"      # "average" (the paper) or "admm" (consensus ADMM with duals)
     rho: float = 1.0             # ADMM's penalty (update="admm" only)
@@ -209,16 +227,22 @@ class DCConfig:
     seed: int = 0
 
     def __post_init__(self):
-        check_fields(self, positive=("loops", "iterations", "flow_states", "flow_iterations",
-                                     "flow_lr", "sigma_max", "flow_step", "reward_step",
-                                     "reward_nodes", "rho",
+        check_fields(self, positive=("loops", "iterations", "flow_states", "rho",
                                      "bc_steps", "bc_batch_size", "lr", "max_grad_norm"),
                      non_negative=("flow_refit_iterations", "weight_decay", "seed"))
         if not isinstance(self.ppo, PPOConfig):
             raise TypeError(f"DCConfig.ppo must be a ppo.PPOConfig, got {type(self.ppo)}")
+        _base.check_flow(self)
         if self.ppo.value_warmup is not None:   # never read by DC's loop: refuse, not ignore
             raise ValueError("DCConfig.ppo.value_warmup is PPO's own loop's; DC's critic "
                              "trains with its PPO step from the first iteration")
+        mine = {"lr": self.lr, "max_grad_norm": self.max_grad_norm, "anneal_lr": False}
+        default = PPOConfig()
+        for name, why in PPO_SET_BY_DC.items():
+            value = getattr(self.ppo, name)
+            if value != mine[name] and (name == "anneal_lr" or value != getattr(default, name)):
+                raise ValueError(f"DCConfig.ppo.{name} = {value!r} is not read: DC uses {why}; "
+                                 f"set that instead")
         for name, allowed in (("update", UPDATES), ("reward", REWARDS),
                               ("optimizer_state", OPTIMIZER_STATES)):
             if getattr(self, name) not in allowed:
@@ -228,9 +252,6 @@ class DCConfig:
             if getattr(self, name) < 1:
                 raise ValueError(f"DCConfig.{name} must be at least 1, got "
                                  f"{getattr(self, name)}")
-        if self.flow_tanh not in _softflow._trace.KERNELS:
-            raise ValueError(f"DCConfig.flow_tanh must be one of {_softflow._trace.KERNELS}, "
-                             f"got {self.flow_tanh!r}")
         if not (self.lr > 0 and self.rho > 0):
             raise ValueError(f"lr and rho must be positive, got {self.lr} and {self.rho}")
 
@@ -246,8 +267,10 @@ class DCConfig:
     def batch_size(self) -> int:
         return self.ppo.batch_size
 
+    @property
     def ppo_config(self) -> PPOConfig:
-        """The PPO settings of the step on pi' (what :func:`ppo.ppo_update` reads)."""
+        """The PPO settings of the step on pi' (what :func:`ppo.ppo_update` reads): ``ppo``
+        with the settings of :data:`PPO_SET_BY_DC`, one batch per update and the run's seed."""
         return dataclasses.replace(self.ppo, lr=self.lr, max_grad_norm=self.max_grad_norm,
                                    anneal_lr=False, total_steps=self.batch_size,
                                    seed=self.seed)
@@ -256,13 +279,9 @@ class DCConfig:
         """The same configuration with some of PPO's settings changed."""
         return dataclasses.replace(self, ppo=dataclasses.replace(self.ppo, **changes))
 
-    def flow_config(self) -> _softflow.SoftFlowConfig:
-        return _softflow.SoftFlowConfig(hidden=self.flow_hidden, sigma_max=self.sigma_max,
-                                        lr=self.flow_lr, iterations=self.flow_iterations,
-                                        solver="rk4", step_size=self.flow_step,
-                                        eval_step_size=self.reward_step,
-                                        eval_quadrature=self.reward_nodes,
-                                        tanh=self.flow_tanh, seed=self.seed)
+    def with_flow(self, **changes) -> "DCConfig":
+        """The same configuration with some of P_w's SoftFlow settings changed."""
+        return dataclasses.replace(self, flow=dataclasses.replace(self.flow, **changes))
 
     def env_steps(self, task: str) -> int:
         """Environment interactions of a whole run: the policy batches plus the learner
@@ -273,7 +292,8 @@ class DCConfig:
 
     def to_json(self) -> str:
         d = _base.unset_dropped(dataclasses.asdict(self))
-        d["ppo"] = json.loads(self.ppo_config().to_json())
+        d["ppo"] = json.loads(self.ppo_config.to_json())
+        d.update(_base.stored_flow(d.pop("flow"), FLOW_STORED_NAMES, _DC_FLOW))
         return json.dumps(d, sort_keys=True)
 
 
@@ -288,9 +308,10 @@ def preset(budget, seed: int = 0, **overrides) -> DCConfig:
     base = DCConfig(**{**DC_DEFAULTS, **overrides, "seed": seed})
     if budget.is_smoke:
         base = dataclasses.replace(base.with_ppo(n_envs=2, n_steps=64, n_minibatches=4,
-                                                 n_epochs=2),
-                                   flow_states=300, flow_iterations=5, flow_refit_iterations=3,
-                                   flow_hidden=(16, 16), bc_steps=4, bc_batch_size=64)
+                                                 n_epochs=2).with_flow(iterations=5,
+                                                                       hidden=(16, 16)),
+                                   flow_states=300, flow_refit_iterations=3, bc_steps=4,
+                                   bc_batch_size=64)
     if "iterations" not in overrides:
         per_loop = max(1, budget.il_steps // (base.loops * base.batch_size))
         base = dataclasses.replace(base, iterations=per_loop)
@@ -433,7 +454,7 @@ def _setup(task, demos, config: DCConfig, policy) -> _Run:
     disc = (_dc_disc.DiscriminatorReward(e_states, spec.obs_dim, flow_seed)
             if config.reward == "gail" else None)
     return _Run(task, config, learner, generator, envs, expert_obs, expert_act, e_states,
-                dataclasses.replace(config.flow_config(), seed=flow_seed), disc)
+                dataclasses.replace(config.flow, seed=flow_seed), disc)
 
 
 def _expert_and_learner_states(run: _Run) -> torch.Tensor:

@@ -62,6 +62,7 @@ so it is the same density).
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
 
 import numpy as np
@@ -82,16 +83,25 @@ from dc_lesson.nn.policies import ACTION_HIGH, ACTION_LOW, GaussianPolicy
 REWARDS = ("scaled", "raw")
 
 
+# q's settings: SoftFlow's defaults but for 300 steps of a fixed-step rk4 fit at step 0.25
+# (DC's loop-0 fit as it was when NDI was written).
+_NDI_FLOW = _softflow.SoftFlowConfig(hidden=(64, 64, 64), sigma_max=0.1, lr=1e-3, iterations=300,
+                                     solver="rk4", step_size=0.25)
+# The stored form of ``NDIConfig.flow`` (see ``base.stored_flow``): the flat names every NDI
+# cell was listed with before the nesting.
+FLOW_STORED_NAMES = {"flow_iterations": "iterations", "flow_hidden": "hidden", "flow_lr": "lr",
+                     "sigma_max": "sigma_max"}
+
+
 @dataclasses.dataclass(frozen=True)
 class NDIConfig(_reward_ppo.PPOImitationConfig):
     """Every knob of NDI; PPO's own (and the run's length) live in ``ppo``."""
 
     ppo: _ppo.PPOConfig = dataclasses.field(default_factory=_reward_ppo.imitation_ppo_default)
     flow_pairs: int = 4000       # expert (s, a) pairs q is fitted on (a subsample)
-    flow_iterations: int = 300   # gradient steps of that fit (DC's loop-0 fit: 300)
-    flow_hidden: tuple[int, ...] = (64, 64, 64)
-    flow_lr: float = 1e-3
-    sigma_max: float = 0.1       # SoftFlow's noise range (standardised pairs)
+    # q: SoftFlow's own settings, nested; ``flow.seed`` is not read (the fit takes a stream of
+    # NDI's ``seed``), so a non-zero one is refused.
+    flow: _softflow.SoftFlowConfig = dataclasses.field(default_factory=lambda: _NDI_FLOW)
     reward: str = "scaled"       # "scaled": log q mapped to [0, 1] as DC's; "raw": log q
     entropy_coef: float = 0.01   # lambda, the weight of the kNN state-entropy bonus
     knn_k: int = 5               # neighbours of the entropy estimate
@@ -103,20 +113,25 @@ class NDIConfig(_reward_ppo.PPOImitationConfig):
 
     def __post_init__(self):
         # Types first (a 0-wide layer, knn_k=True, an infinite rate), then NDI's own ranges.
-        check_fields(self, positive=("flow_pairs", "flow_lr", "sigma_max", "knn_k"),
-                     non_negative=("flow_iterations", "entropy_coef", "value_warmup", "seed"))
+        check_fields(self, positive=("flow_pairs", "knn_k"),
+                     non_negative=("entropy_coef", "value_warmup", "seed"))
         if self.reward not in REWARDS:
             raise ValueError(f"NDIConfig.reward must be one of {REWARDS}, got {self.reward!r}")
-        if self.flow_pairs < 2 or self.flow_iterations < 0 or self.knn_k < 1:
-            raise ValueError("NDIConfig.flow_pairs >= 2, flow_iterations >= 0, knn_k >= 1")
+        if self.flow_pairs < 2 or self.knn_k < 1:
+            raise ValueError("NDIConfig.flow_pairs >= 2, knn_k >= 1")
         if self.entropy_coef < 0:
             raise ValueError(f"NDIConfig.entropy_coef must be >= 0, got {self.entropy_coef}")
+        _base.check_flow(self)
         self.check_ppo()
 
-    def flow_config(self) -> _softflow.SoftFlowConfig:
-        return _softflow.SoftFlowConfig(hidden=self.flow_hidden, sigma_max=self.sigma_max,
-                                        lr=self.flow_lr, iterations=self.flow_iterations,
-                                        solver="rk4", step_size=0.25, seed=self.seed)
+    def to_dict(self) -> dict:
+        d = super().to_dict()
+        d.update(_base.stored_flow(d.pop("flow"), FLOW_STORED_NAMES, _NDI_FLOW))
+        return json.loads(json.dumps(d))
+
+    def with_flow(self, **changes) -> "NDIConfig":
+        """The same configuration with some of q's SoftFlow settings changed."""
+        return dataclasses.replace(self, flow=dataclasses.replace(self.flow, **changes))
 
 
 def sized(total_steps: int, seed: int = 0, base: NDIConfig | None = None) -> NDIConfig:
@@ -128,7 +143,7 @@ def preset(budget, seed: int = 0) -> NDIConfig:
     """NDI at a budget: ``il_steps`` interactions; a tiny flow at ``smoke``."""
     cfg = sized(budget.il_steps, seed)
     if budget.is_smoke:
-        cfg = dataclasses.replace(cfg, flow_pairs=300, flow_iterations=5, flow_hidden=(16, 16))
+        cfg = dataclasses.replace(cfg, flow_pairs=300).with_flow(iterations=5, hidden=(16, 16))
     return cfg
 
 
@@ -199,7 +214,7 @@ def fit_density(demos, config: NDIConfig, seed: int) -> _softflow.SoftFlow:
     g = torch.Generator().manual_seed(seed)
     if len(x) > config.flow_pairs:
         x = x[torch.randperm(len(x), generator=g)[:config.flow_pairs]]
-    flow, _ = _softflow.fit(x, dataclasses.replace(config.flow_config(), seed=seed),
+    flow, _ = _softflow.fit(x, dataclasses.replace(config.flow, seed=seed),
                             progress=False)
     return flow
 

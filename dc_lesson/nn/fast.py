@@ -29,7 +29,7 @@ the same computations take these kernels:
   same bits; each output within a few float32 ulps of the size of the layers' terms
   (``tests/test_fast.py``: ``test_numpy_forward_equals_the_modules_to_float32_rounding``,
   ``test_one_step_from_the_same_state_agrees_on_either_path``);
-* NumPy's tanh in a flow (``density._trace``, DC's ``flow_tanh="numpy"``): *not* the same
+* NumPy's tanh in a flow (``density._trace``, DC's ``flow.tanh="numpy"``): *not* the same
   bits, within one ulp (``tests/test_softflow.py::test_the_flows_tanh_is_numpys_to_one_ulp...``).
 
 A learner turns a last-bit difference into another trajectory, so a run on the reader's path

@@ -15,16 +15,15 @@ within +- the seed spread of today's runs (their standard deviation over seeds);
 is "not shown" (an interval wider than the spread is too few seeds, not a verdict against).
 "Today's" arm is DC with the flow's numerics of every run before 2026-12-04
 (:data:`~dc_lesson.algorithms.dc.STORED_NUMERICS`: steps 0.25, 4 nodes, torch's tanh).  The
-variants (``--variant``): ``fit`` changes the training solver only (``flow_step`` 0.5; the
+variants (``--variant``): ``fit`` changes the training solver only (``flow.step_size`` 0.5; the
 reward still evaluates log P_w at step 0.25), ``fit+reward`` the reward's solver as well
-(``reward_step`` 0.5), both with torch's tanh as they were measured; ``defaults`` is DC as it
+(``flow.eval_step_size`` 0.5), both with torch's tanh as they were measured; ``defaults`` is DC as it
 now is by default (steps 0.5, 3 nodes, NumPy's tanh in the flow), the change's own check.
 """
 
 from __future__ import annotations
 
 import copy
-import dataclasses
 import time
 
 import numpy as np
@@ -38,16 +37,16 @@ from dc_lesson.storage import check_writable, write_result
 
 # The variants, as changes to the stored numerics (dc.STORED_NUMERICS, torch's tanh);
 # "defaults": DC's defaults as they are (None: the preset unchanged).
-VARIANTS = {"fit": {"flow_step": 0.5},                          # the training solver only
-            "fit+reward": {"flow_step": 0.5, "reward_step": 0.5},   # and the reward's too
-            "defaults": None}                                   # today's defaults
+VARIANTS = {"fit": {"step_size": 0.5},                             # the training solver only
+            "fit+reward": {"step_size": 0.5, "eval_step_size": 0.5},   # and the reward's too
+            "defaults": None}                                      # today's defaults
 
 
 def arms(b: _budget.Budget, seed: int, variant: str) -> dict:
     """``{"today": config, "cheaper": config}`` of a seed (see the module's docstring)."""
-    stored = dataclasses.replace(_dc.preset(b, seed), **_dc.STORED_NUMERICS)
+    stored = _dc.preset(b, seed).with_flow(**_dc.STORED_NUMERICS)
     change = VARIANTS[variant]
-    cheaper = _dc.preset(b, seed) if change is None else dataclasses.replace(stored, **change)
+    cheaper = _dc.preset(b, seed) if change is None else stored.with_flow(**change)
     return {"today": stored, "cheaper": cheaper}
 
 

@@ -107,7 +107,7 @@ def _states(task: str, n_train: int, n_test: int, seed: int = 0):
 
 
 def _config(b: _budget.Budget, changes: dict, seed: int) -> _sf.SoftFlowConfig:
-    base = dataclasses.replace(_dc.preset(b, seed), **_dc.STORED_NUMERICS).flow_config()
+    base = _dc.preset(b, seed).with_flow(**_dc.STORED_NUMERICS).flow
     changes = dict(changes)
     if changes.get("iterations") == "half":
         changes["iterations"] = max(1, base.iterations // 2)

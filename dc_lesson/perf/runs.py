@@ -68,7 +68,8 @@ if name == "bc":
     cfg = dataclasses.replace(cfg, epochs=20, patience=10 ** 6)
 numerics = getattr(sys.modules[type(cfg).__module__], "STORED_NUMERICS", None)
 if stored and numerics:   # code without the settings runs its only DC
-    cfg = dataclasses.replace(cfg, **numerics)
+    cfg = (cfg.with_flow(**numerics) if hasattr(cfg, "with_flow")   # nested flow settings
+           else dataclasses.replace(cfg, **numerics))
 demos = data.load_demos(task, n_trajectories=b.il_demos) if algo.uses_demos else None
 # today's fast path, as sweep workers run it; older code had it on by default or not at all
 try:
@@ -84,8 +85,10 @@ t0 = time.perf_counter()
 with switch():
     algo.train(task, demos, cfg, policy=start, progress=False)
 seconds = time.perf_counter() - t0
-print(json.dumps({"package": dc_lesson.__file__, "seconds": seconds,
-                  "config": json.loads(json.dumps(dataclasses.asdict(cfg), default=str))}))
+# the stored form where the config has one (flat across DC's nesting of its flow settings)
+config = (json.loads(cfg.to_json()) if hasattr(cfg, "to_json")
+          else json.loads(json.dumps(dataclasses.asdict(cfg), default=str)))
+print(json.dumps({"package": dc_lesson.__file__, "seconds": seconds, "config": config}))
 """
 
 
