@@ -819,8 +819,8 @@ coin = _claims_mod.hidden_coin_collapse(t1) if t1 is not None else None
 book.append({"claim": _claims_mod.GAIL_COLLAPSES.name + " (hidden-coin demonstrations)",
              "where": "chapter 2, Table I's gail-coin",
              "verdict": coin.verdict if coin else "not run yet"})
-book += [{"claim": v.claim, "where": v.source, "verdict": v.verdict}
-         for v in _claims_mod.verdicts(actions="mean")]
+book += [{"claim": v.claim, "where": v.source, "verdict": v.verdict}   # Table I, ablations
+         for v in ablations.book_verdicts(actions="mean")]
 if t3 is not None:
     book += [{"claim": v.claim, "where": "Table III", "verdict": v.verdict}
              for v in t3_verdicts]

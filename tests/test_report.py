@@ -23,6 +23,13 @@ def test_fmt_drops_an_interval_that_is_not_there():
     assert report.fmt(0.5, float("nan"), 0.6, 2) == "0.50"
 
 
+def test_fmt_never_prints_a_nonzero_mean_as_zero():
+    # issue 40: "-0.000 [-0.000, -0.000] ... contradicted" read as no difference at all
+    assert report.fmt(-1e-4, -2e-4, -1e-5, 3) == "-1.0e-04"
+    assert report.fmt(-1e-4, -0.02, 0.01, 2) == "-1.0e-04 [-0.02, 0.01]"
+    assert report.fmt(0.0, -0.02, 0.01, 2) == "0.00 [-0.02, 0.01]"
+
+
 def test_fmt_shows_no_degenerate_range():
     assert report.fmt(1.1, 1.1, 1.1, 2) == "1.10"             # every seed the same
     assert report.fmt(1.1, 1.0999, 1.1001, 2) == "1.10"       # a range that rounds to a point

@@ -750,3 +750,20 @@ def test_arrival_lines_say_each_rows_arrivals_and_collapsed_seeds_per_task():
                      "arrivals at one mode; `gail-coin` arrives at a mode in 0.20 of its "
                      "episodes, 1.00 of those at its largest mode, 3 of 3 seeds with at least "
                      "80% of their arrivals at one mode."]
+
+
+def test_a_comparison_over_the_tasks_is_one_holm_family():
+    # issue 40: chapter 5 worded each (baseline, task) alone; table_one.family adjusts a
+    # comparison's tasks together, so a p of 0.048 on one task of three is not decisive
+    diffs = {table_one.TASKS[0]: [0.10, 0.30, 0.02, 0.25, 0.08],
+             table_one.TASKS[1]: [0.1, -0.1, 0.05, -0.05, 0.0],
+             table_one.TASKS[2]: [0.1, -0.1, 0.05, -0.05, 0.0]}
+    paired = [{"a": "dc", "b": "bc", "task": task, "n_seeds": 5, "scaled_return_diffs": d}
+              for task, d in diffs.items()]
+    rec = {"mean": {"paired": paired, "expert": []}}
+    alone = table_one.word({"a": "dc", "b": "bc", "task": table_one.TASKS[0],
+                            "scaled_return_diffs": diffs[table_one.TASKS[0]]},
+                           "scaled_return", rec, competence={})
+    got = table_one.family(rec, "dc", "bc", "scaled_return", competence={})
+    assert alone == "reproduced" and got[table_one.TASKS[0]].word == "inconclusive"
+    assert got[table_one.TASKS[0]].p_holm == pytest.approx(3 * 0.0481, abs=2e-3)

@@ -2,6 +2,8 @@
 counts, with a smallest effect, Holm across a claim's tasks, the not-judged gates and the
 across-task estimators (IQM, probability of improvement) against their definitions."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -144,7 +146,20 @@ def test_comparable_claims_take_equality_as_their_word():
     c = v.Claim("DC comparable to BC", "test", "scaled_return", "dc", "bc", +1, "r",
                 comparable=True)
     assert v.judge_claim(c, _obs({"t": 0.0})).verdict == "equal within 0.05"
-    assert "equal within the bound" in c.rule
+    assert "'equal within' the bound answers it" in c.rule
+    assert "answers it" not in dataclasses.replace(c, comparable=False).rule
+
+
+def test_the_estimators_give_rliables_published_examples():
+    # rliable does not install on this stack (its `arch` dependency fails to import against
+    # our pandas), so ours are checked against the examples of its own test
+    # (google-research/rliable, tests/rliable/metrics_test.py): runs x tasks score matrices
+    x = np.array([[1, 2], [2, 2], [1, 1], [2, 1]], float)
+    y = np.array([[1, 1], [2, 2], [3, 3]], float)
+    by_task = lambda m: {t: list(m[:, t]) for t in range(m.shape[1])}
+    assert stats.iqm_tasks(by_task(x)).mean == pytest.approx(1.5)
+    assert stats.iqm_tasks(by_task(y)).mean == pytest.approx(2.0)
+    assert stats.probability_of_improvement(by_task(x), by_task(y)).mean == pytest.approx(1 / 3)
 
 
 def test_iqm_and_probability_of_improvement_by_their_definitions():

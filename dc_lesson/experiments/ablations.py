@@ -32,6 +32,7 @@ from dc_lesson.storage import read_result
 TASK = "hopper"
 FILES = {"ablation": "dc_ablation.json", "dc_lr": "dc_lr.json", "gail_lr": "gail_lr.json"}
 DEFAULT_LR = 3e-4        # DC's and GAIL's own rate: the pair Figure 5 compares
+FAILING_LR = 1e-3        # the paper: GAIL "tends to fail/crash" at this rate and higher
 EARLY = 0.5              # Figure 5: the first half of the interactions
 LOOP_ROWS = ("dc-loops=1", "dc-loops=2", "dc-loops=3", "dc-loops=4", "dc-loops=1-long")
 CLAIMS = _claims.ABLATIONS
@@ -161,7 +162,27 @@ def verdicts(recs: dict | None = None, competence: dict | str | None = "stored")
     zero = [{**o, "row": "zero"} for o in dc]
     out.append(judge(c.CONVERGES, dc + zero, measure=lambda o: (
         0.0 if o["row"] == "zero" else log_gap_ratio(o))))
+    out.append(gail_against_start(recs, competence))
     return out
+
+
+def gail_against_start(recs: dict, competence: dict | str | None = "stored"
+                       ) -> _verdicts.Verdict:
+    """:data:`claims.GAIL_LR_START`: per rate of the ``gail_lr`` sweep, GAIL's final scaled
+    return against the seed's own BC start, one Holm family over the rates the paper says
+    GAIL fails at (:data:`FAILING_LR` and up; the members are keyed by the rate; the start
+    gates read the BC start's level).  ``recs``: the ablations' aggregates (:func:`load`)."""
+    competence = _claims.competence_of(competence, *recs.values())
+    obs = observations(recs)
+    per_rate, starts = [], [o for o in obs if o["row"] == "bc"]
+    rates = sorted({lr_of(o["row"]) for o in obs if o["row"].startswith("gail-lr=")
+                    and lr_of(o["row"]) >= FAILING_LR * (1 - 1e-9)})
+    for lr in rates:
+        per_rate += [{**o, "row": "gail", "lr": f"{lr:g}"} for o in obs
+                     if o["row"].startswith("gail-lr=") and np.isclose(lr_of(o["row"]), lr)]
+        per_rate += [{**o, "lr": f"{lr:g}"} for o in starts]
+    return _verdicts.judge_claim(_claims.GAIL_LR_START, per_rate, [f"{r:g}" for r in rates],
+                                 by=("lr",), competence=competence, unit="rates")
 
 
 # -- what the chapter draws ---------------------------------------------------------------------

@@ -101,7 +101,18 @@ CONVERGES = Claim(
     "first quarter) of the L1 distance between pi and pi' before averaging: negative when "
     "the two copies come together (the raw parameter-change ratio shows only 'not diverging')",
     start=None)
-ABLATIONS = (LOOPS, EQUAL_BUDGET, LONG_LOOP, LR_ROBUST, FASTER, STABLE, CONVERGES)
+GAIL_LR_START = Claim(
+    "GAIL fails at learning rates of 1e-3 and higher: it ends below its start",
+    "Figure 4 (chapter 2)", "scaled_return", "gail", "bc", -1,
+    "the paper: GAIL 'tends to fail/crash when learning rates are 1e-3 and higher'; per rate "
+    "of the gail_lr sweep from 1e-3 up, GAIL's final scaled return against the seed's own BC "
+    "start, one Holm family over those rates (reproduced where it ends below its start). "
+    "Declared as a claim after a review found "
+    "chapter 2 wording each rate alone, outside the family and the start gates. Only a start "
+    "at the floor is gated: a start at the ceiling leaves all the room a fall needs",
+    gates=(FLOOR,))
+ABLATIONS = (LOOPS, EQUAL_BUDGET, LONG_LOOP, LR_ROBUST, FASTER, STABLE, CONVERGES,
+             GAIL_LR_START)
 
 # -- Table III and Figures 9, 11 (chapter 06; judged in ``table_three``) --------------------------
 
@@ -283,7 +294,7 @@ def verdicts(obs=None, reference_shares=None, source: str = "", eval_episodes: i
 
 __all__ = ["ABLATIONS", "BC_GROWS", "BC_IMPROVES", "CLAIMS", "COLLAPSE_SHARE", "COMPARABLE", "competence_of",
            "COMPARABLE_BC", "CONVERGES", "DC_BEATS_BC", "DC_BEATS_DRIL_FEW", "DC_FASTER",
-           "DC_KEEPS_MODES", "DC_STABLE", "EQUAL_BUDGET", "FASTER", "GAIL_COLLAPSES",
+           "DC_KEEPS_MODES", "DC_STABLE", "EQUAL_BUDGET", "FASTER", "GAIL_COLLAPSES", "GAIL_LR_START",
            "GPRIL_LOWEST", "HIGHER_RETURN", "LONG_LOOP", "LOOPS", "LOWEST_DIVERGENCE",
            "LR_ROBUST", "MIN_SEEDS", "STABLE", "TABLE_ONE", "TABLE_THREE", "WORDS", "Claim",
            "Verdict", "bc_growth", "count", "floors", "hidden_coin_collapse", "judge_claim",

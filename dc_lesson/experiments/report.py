@@ -30,11 +30,19 @@ def fmt(mean: float, lo: float | None = None, hi: float | None = None, digits: i
     ``[0.98, 1.01]``).  Only the printed interval is clipped: every word is decided on the
     t interval as computed."""
     if lo is None or hi is None or not (math.isfinite(lo) and math.isfinite(hi)):
-        return f"{mean:.{digits}f}"
+        return _num(mean, digits)
     lo, hi = clip(lo, hi, limits)
     if f"{lo:.{digits}f}" == f"{hi:.{digits}f}":
-        return f"{mean:.{digits}f}"
-    return f"{mean:.{digits}f} [{lo:.{digits}f}, {hi:.{digits}f}]"
+        return _num(mean, digits)
+    return f"{_num(mean, digits)} [{lo:.{digits}f}, {hi:.{digits}f}]"
+
+
+def _num(x: float, digits: int) -> str:
+    """``x`` at ``digits`` decimals, or in two significant digits where that would print a
+    nonzero value as 0 (a mean difference is never printed ``-0.00`` or ``0.00`` unless it
+    is zero; the interval's ends keep the fixed decimals)."""
+    s = f"{x:.{digits}f}"
+    return f"{x:.1e}" if x != 0 and math.isfinite(x) and float(s) == 0 else s
 
 
 def stored(name: str) -> dict | None:

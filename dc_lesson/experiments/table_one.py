@@ -233,31 +233,60 @@ def word(entry: dict | None, measure: str, rec: dict | None = None,
 
 def said(entry: dict | None, measure: str, rec: dict | None = None,
          actions: str = "mean", direction: int | None = None,
-         better: str = "better", worse: str = "worse", floor: float | None = None) -> str:
+         better: str = "better", worse: str = "worse", floor: float | None = None,
+         decided: str | None = None) -> str:
     """``a - b`` on ``measure`` as ``mean [lo, hi], *word*`` (the rule's t interval and its
-    word, with which row is ``better`` or ``worse`` when it is decisive)."""
+    word, with which row is ``better`` or ``worse`` when it is decisive).  ``decided``: the
+    word its family gave (:func:`family`), in place of the entry's word on its own."""
     if not entry or f"{measure}_diffs" not in entry:
         return f"*{word(entry, measure)}*"
     t = _verdicts.paired_t(entry[f"{measure}_diffs"])
     band = (f" [{_verdicts.fmt_num(t.lo)}, {_verdicts.fmt_num(t.hi)}]"
             if t.n >= 2 and t.lo != t.hi else "")
-    w = word(entry, measure, rec, actions, direction, floor)
+    w = decided or word(entry, measure, rec, actions, direction, floor)
     side = {_verdicts.REPRODUCED: f" ({entry['a']} {better})",
             _verdicts.CONTRADICTED: f" ({entry['a']} {worse})"}.get(w, "")
     return f"{_verdicts.fmt_num(t.mean)}{band}, *{w}*{side}"
+
+
+def family(rec: dict, a: str, b: str, measure: str, actions: str = "mean",
+           competence: dict | str | None = "stored", question: str = "") -> dict:
+    """``{task: verdicts.Entry}``: "is ``a`` better than ``b`` on ``measure``?" over Table I's
+    tasks as one Holm family (the one rule; a divergence's bound the task's expert floor; no
+    start gate: a control asks which row is better, not whether a start improved)."""
+    return judge_entries({t: paired(rec, a, b, t, actions) for t in TASKS}, measure, rec,
+                         actions, competence=competence, question=question)
+
+
+def judge_entries(entries: dict, measure: str, rec: dict | None, actions: str = "mean",
+                  direction: int | None = None, competence: dict | str | None = "stored",
+                  question: str = "") -> dict:
+    """``{task: verdicts.Entry}`` of paired entries (``{task: entry or None}``, each ``a - b``
+    with its per-seed differences; the compared rows may differ from task to task) judged as
+    one Holm family: "is ``a`` better than ``b`` on ``measure``?" by ``direction`` (default
+    ``verdicts.BETTER``), a divergence's bound the task's expert floor, no start gate."""
+    got = {t: e for t, e in entries.items() if e and f"{measure}_diffs" in e}
+    if not got:
+        return {}
+    a = "/".join(dict.fromkeys(e["a"] for e in got.values()))
+    b = "/".join(dict.fromkeys(e["b"] for e in got.values()))
+    question = question or f"{a} better than {b} on {measure}"
+    c = _verdicts.Claim(question, "control", measure, a, b,
+                        direction or _verdicts.BETTER[measure], question, start=None)
+    floor = claims.floors(rec, actions)
+    members = [(t, np.asarray(e[f"{measure}_diffs"], float), None,
+                floor.get(t, {}).get(measure)) for t, e in got.items()]
+    gate = claims.competence_of(competence, rec)
+    return {e.key: e for e in _verdicts.judge_family(c, members, gate)}
 
 
 def controls(rec: dict, actions: str = "mean",
              competence: dict | str | None = "stored") -> list[dict]:
     """Every control on every task: the question, ``a - b`` with its interval, the word
     (Holm across the control's tasks) and, beside it, the reason it is not judged."""
-    out, floor, gate = [], claims.floors(rec, actions), claims.competence_of(competence, rec)
+    out = []
     for a, b, measure, question in CONTROLS:
-        c = _verdicts.Claim(question, "control", measure, a, b, _verdicts.BETTER[measure],
-                            question, start=None)
-        got = {e.key: e for e in _verdicts.judge_claim(c, rec[actions]["observations"],
-                                                       TASKS, floors=floor,
-                                                       competence=gate).per_task}
+        got = family(rec, a, b, measure, actions, competence, question)
         for task in TASKS:
             e = got.get(task)
             w = e.word if e else f"{_verdicts.NOT_JUDGED}: not run yet"

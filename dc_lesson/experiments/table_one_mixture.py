@@ -23,7 +23,7 @@ from __future__ import annotations
 
 from dc_lesson.experiments.report import fmt_entry
 from dc_lesson.experiments import claims, verdicts as _verdicts
-from dc_lesson.experiments.table_one import TASKS, paired, word
+from dc_lesson.experiments.table_one import TASKS, judge_entries, paired
 
 # (mixture row, the row it is compared with, the demonstrations, what the difference isolates)
 COMPARISONS = (
@@ -40,18 +40,33 @@ MEASURES = (("mode_tv", "mode TV", -1), ("scaled_return", "scaled return", +1),
             ("emd", "EMD", -1))
 
 
+def words(rec: dict, a: str, b: str, actions: str = "mean",
+          competence: dict | str | None = "stored") -> dict:
+    """``{measure: {task: word}}`` of one comparison: per measure, "is the mixture row ``a``
+    better than ``b``?" over :data:`TASKS` as one Holm family (the rule of :mod:`verdicts`,
+    :func:`table_one.judge_entries`); ``not judged: not run yet`` where a task has no pairs."""
+    entries = {t: paired(rec, a, b, t, actions) for t in TASKS}
+    out = {}
+    for m, _, direction in MEASURES:
+        got = judge_entries(entries, m, rec, actions, direction, competence)
+        out[m] = {t: got[t].word if t in got else f"{_verdicts.NOT_JUDGED}: not run yet"
+                  for t in TASKS}
+    return out
+
+
 def table(rec: dict, actions: str = "mean", digits: int = 3) -> list[dict]:
     """One dict per (comparison, task): the rows, paired seeds, and per measure ``a - b`` as
-    ``mean [lo, hi]`` with its word."""
+    ``mean [lo, hi]`` with its word (:func:`words`: Holm across the tasks)."""
     out = []
     for a, b, demos, what in COMPARISONS:
+        said = words(rec, a, b, actions)
         for task in TASKS:
             e = paired(rec, a, b, task, actions)
             row = {"demonstrations": demos, "a - b": f"{a} - {b}", "task": task,
                    "isolates": what, "seeds": e["n_seeds"] if e else 0}
             for m, label, _ in MEASURES:
                 row[label] = fmt_entry(e, m, digits) if e and m in e else ""
-                row[f"{label}: word"] = word(e, m)
+                row[f"{label}: word"] = said[m][task]
             out.append(row)
     return out
 
@@ -76,10 +91,9 @@ def tally(rec: dict, actions: str = "mean") -> dict:
     out: dict = {}
     for a, b, *_ in COMPARISONS:
         per = out.setdefault((a, b), {})
-        for m, _, direction in MEASURES:
+        for m, said in words(rec, a, b, actions).items():
             for task in TASKS:
-                v = verdict(paired(rec, a, b, task, actions), m, direction, rec, actions)
-                per.setdefault(m, {}).setdefault(v, []).append(task)
+                per.setdefault(m, {}).setdefault(said[task], []).append(task)
     return out
 
 

@@ -17,8 +17,8 @@ against an alternative (:data:`COMPARATORS`):
 
 Each comparison's word is :mod:`verdicts`' for "DC's mode TV is lower" (DC keeps more of the
 expert's modes): *reproduced* (better), *contradicted* (worse), *equal within 0.05*,
-*inconclusive* or *not judged: reason* (:func:`table_one_mixture.verdict` with
-lower-is-better).  And the floor: the expert scored like a learner on disjoint episodes has a
+*inconclusive* or *not judged: reason* (:func:`table_one.judge_entries` with
+lower-is-better: each comparator one Holm family over the tasks).  And the floor: the expert scored like a learner on disjoint episodes has a
 mode TV of its own (finite episodes).  DC's seeds share nothing with the expert's, so that
 comparison is unpaired: the same claim judged by :func:`verdicts.word_unpaired` (Welch's t,
 the same smallest effect and words; *contradicted* there means DC's mix stays further from the
@@ -33,9 +33,9 @@ vocabulary (tested on constructed aggregates in ``tests/test_table1.py``).
 from __future__ import annotations
 
 from dc_lesson.experiments.report import fmt_entry
-from dc_lesson.experiments.table_one import TASKS, fmt_tv, paired, tv_band
+from dc_lesson.experiments.table_one import TASKS, fmt_tv, judge_entries, paired, tv_band
 from dc_lesson.experiments import claims, verdicts as V
-from dc_lesson.experiments.table_one_mixture import count_words, verdict
+from dc_lesson.experiments.table_one_mixture import count_words
 
 BEST_BC = "best-bc"       # the stand-in name of the better-trained BC, resolved per task
 BCS = ("bc-full", "bc-lib")
@@ -77,11 +77,13 @@ def against(rec: dict, actions: str = "mean") -> dict:
     """``{comparator: {task: (row compared, verdict, paired entry)}}``: DC's mode TV against
     each comparator, by the lower-is-better rule."""
     out: dict = {}
-    for comp, _ in COMPARATORS:
+    for comp, _ in COMPARATORS:   # each comparator one Holm family over the tasks
+        rows = {t: best_bc(rec, t, actions) if comp == BEST_BC else comp for t in TASKS}
+        entries = {t: paired(rec, "dc", r, t, actions) if r else None for t, r in rows.items()}
+        got = judge_entries(entries, "mode_tv", rec, actions, -1)
         for task in TASKS:
-            row = best_bc(rec, task, actions) if comp == BEST_BC else comp
-            e = paired(rec, "dc", row, task, actions) if row else None
-            out.setdefault(comp, {})[task] = (row, verdict(e, "mode_tv", -1, rec, actions), e)
+            w = got[task].word if task in got else f"{V.NOT_JUDGED}: not run yet"
+            out.setdefault(comp, {})[task] = (rows[task], w, entries[task])
     return out
 
 

@@ -200,8 +200,9 @@ class Claim:
     @property
     def rule(self) -> str:
         side = "above" if self.direction > 0 else "below"
-        what = (f"reproduced if a - b is {side} zero" + (" or equal within the bound"
-                                                           if self.comparable else ""))
+        what = (f"reproduced if a - b is {side} zero" + (
+            " (a comparable claim: 'equal within' the bound answers it too)"
+            if self.comparable else ""))
         return (f"{self.measure}: paired t-test of ({self.a} - {self.b}) per seed, Holm "
                 f"across the claim's tasks; {what} (p < {ALPHA}, mean beyond the smallest "
                 f"effect {bound_for(self.measure)}{' or the expert floor' if self.measure in DIVERGENCES else ''}); "
@@ -260,7 +261,8 @@ def competence_gate(claim: Claim, competence: dict | None) -> str | None:
     learner (``"gail"``; a row ``"gail-coin"`` or ``"dc@lr"`` is its learner's) to the phrase
     that follows its name: ``"failed the competence gate — why"``, ``"has not yet shown
     competence — why"`` (:func:`dc_lesson.experiments.competence.mapping`)."""
-    return rows_gate((claim.b, claim.a), competence)
+    # a family whose rows differ by task names them "a/b" (table_one.judge_entries)
+    return rows_gate(tuple(r for x in (claim.b, claim.a) for r in x.split("/")), competence)
 
 
 def rows_gate(rows, competence: dict | None) -> str | None:
