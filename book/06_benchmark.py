@@ -354,7 +354,11 @@ if tasks9:
 # otherwise, and *not judged* with its reason: too few paired seeds (the planner tasks' reduced
 # rows have one RL seed by design), or a BC start at the ceiling or the floor, where the
 # comparison cannot show what the claim asks. "Comparable" claims take *equal within* as
-# their answer. The table after the claims puts each reason beside its word.
+# their answer. The table after the claims puts each reason beside its word. Where a task has
+# too few seeds for its own word, each claim is also judged **across tasks**
+# (`verdicts.judge_across`, the table's "across tasks" rows): one unit per task, the mean of
+# its per-seed differences however few the seeds, and the same rule over those units (at
+# least 5 tasks; calibrated like the rule, `tests/test_verdicts.py`).
 
 # %% [markdown]
 # **How the rule was chosen, and what it can see.** Before this rule the book called a

@@ -236,3 +236,32 @@ def test_evidence_prints_a_bounded_difference_clipped_but_decides_unclipped():
     # a measure without limits prints its interval as computed
     free = v.evidence(v.Claim("x", "s", "scaled_return", "dc", "bc", 1, "r"), [e])
     assert "[+0.800, +1.100]" in free
+
+
+@pytest.mark.parametrize("null", list(v.NULLS))
+@pytest.mark.parametrize("n_tasks", [5, 7])
+def test_the_claim_across_tasks_is_calibrated_with_few_seeds_per_task(null, n_tasks):
+    # issue 40: a grid with 1-5 seeds per task judges across tasks (one unit per task); under
+    # a true null it must declare a difference at most 0.06 of the time, like the rule itself
+    rng = np.random.default_rng(1)
+    claim = v.Claim("c", "test", "scaled_return", "a", "b", +1, "r", start=None)
+    hits, sims = 0, 1500
+    for _ in range(sims):
+        members = [(("t%d" % k, 4), v.NULLS[null](rng, int(rng.integers(1, 6))), None, None)
+                   for k in range(n_tasks)]
+        hits += v.kind(v.judge_across(claim, members).word) in (v.REPRODUCED, v.CONTRADICTED)
+    assert hits / sims <= 0.06
+
+
+def test_the_claim_across_tasks_takes_one_unit_per_task_and_its_gates():
+    claim = v.Claim("c", "test", "scaled_return", "dc", "bc", +1, "r")
+    # four tasks, two counts each: four units, too few
+    members = [((t, n), [0.3], 0.5, None) for t in "abcd" for n in (4, 25)]
+    got = v.judge_across(claim, members)
+    assert got.n == 4 and got.word.startswith("not judged: fewer than 5 tasks")
+    # a clear gain on six tasks, one seed each, is reproduced; a start at the ceiling drops
+    members = [((t, 4), [0.3 + 0.01 * i], 0.5, None) for i, t in enumerate("abcdef")]
+    assert v.judge_across(claim, members).word == v.REPRODUCED
+    assert v.judge_across(claim, members[:5] + [(("g", 4), [0.3], 0.99, None)]).n == 5
+    held = v.judge_across(claim, members, competence={"dc": "failed the competence gate"})
+    assert held.word.startswith("not judged: dc failed")

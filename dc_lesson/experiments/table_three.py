@@ -265,7 +265,8 @@ def verdicts(rec: dict, competence: dict | str | None = "stored") -> list:
             keep = counts[:1] if claim in FEWEST_ONLY else counts
             group = [o for o in obs if o["n_demos"] in keep]
         out.append(_verdicts.judge_claim(claim, group, by=("task", "n_demos"),
-                                         competence=competence, unit="task-count pairs"))
+                                         competence=competence, unit="task-count pairs",
+                                         across=True))
     return out
 
 

@@ -64,6 +64,14 @@ def summary(vs: list) -> list[dict]:
                                                       if e.n >= 2 else ""),
                         "seeds": e.n, "p (Holm)": "" if e.p_holm != e.p_holm
                         else f"{e.p_holm:.3f}"})
+        if v.across is not None:   # the claim across tasks: one unit per (task, count)
+            e = v.across
+            word, why = _split(e.word)
+            out.append({"claim": v.claim, "task": "across tasks", "demonstrations": "all",
+                        "word": word, "reason": why,
+                        "difference": (f"{V.fmt_num(e.mean)} [{V.fmt_num(e.lo)}, "
+                                       f"{V.fmt_num(e.hi)}]" if e.n >= 2 else ""),
+                        "seeds": f"{e.n} task means", "p (Holm)": ""})
     return out
 
 

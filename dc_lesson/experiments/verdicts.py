@@ -236,6 +236,7 @@ class Verdict:
     evidence: str
     reason: str = ""
     per_task: tuple = ()  # Entry per member
+    across: Entry | None = None   # the claim across tasks (:func:`judge_across`), if asked
 
 
 def fmt_num(x: float) -> str:
@@ -295,6 +296,36 @@ def judge_family(claim: Claim, members, competence: dict | None = None) -> tuple
              decide(t, claim.direction, b, p[i], pe[i]))
         out.append(Entry(key, w, t.mean, t.lo, t.hi, t.n, p.get(i, float("nan")), b))
     return tuple(out)
+
+
+def judge_across(claim: Claim, members, competence: dict | None = None) -> Entry:
+    """The claim **across tasks**, for a grid whose seeds are too few for per-task words:
+    each member (``(key, diffs, start level or None, floor or None)``, as
+    :func:`judge_family`'s) that is not held back by its start gives the mean of its
+    per-seed differences, however few its seeds, and each task one unit, the mean of its
+    members' (a key ``(task, count)`` is its task's: counts of one task share its expert and
+    are not independent); the one rule (paired t, the smallest effect, the same words) runs
+    over those units, so it needs :data:`MIN_SEEDS` tasks.  What it answers is "across tasks, is ``a - b`` on the claim's
+    side?", the question of the rliable headline, with the verdict rule's calibration: the
+    task means are the sample (``tests/test_verdicts.py`` checks its false positives).  A
+    divergence's bound is the median of the tasks' floors."""
+    gate = competence_gate(claim, competence)
+    if gate:
+        return Entry("across tasks", f"{NOT_JUDGED}: {gate}", float("nan"), float("nan"),
+                     float("nan"), 0, float("nan"), float("nan"))
+    per_task: dict = {}
+    floors = []
+    for key, diffs, level, floor in members:
+        if len(diffs) and not (claim.gated and start_gate(level, claim.gates)):
+            task = key[0] if isinstance(key, tuple) else key
+            per_task.setdefault(task, []).append(float(np.mean(diffs)))
+            floors += [floor] if floor is not None else []
+    kept = [float(np.mean(m)) for m in per_task.values()]
+    b = bound_for(claim.measure, float(np.median(floors)) if floors else None)
+    t = paired_t(kept, b)
+    w = (f"{NOT_JUDGED}: fewer than {MIN_SEEDS} tasks" if len(kept) < MIN_SEEDS
+         else decide(t, claim.direction, b))
+    return Entry("across tasks", w, t.mean, t.lo, t.hi, t.n, t.p, b)
 
 
 def label(key) -> str:
@@ -365,10 +396,12 @@ def start_level(obs, key, row: str | None, by=("task",)) -> float | None:
 
 def judge_claim(claim: Claim, obs, keys=None, measure=None, note: str = "", by=("task",),
                 competence: dict | None = None, floors: dict | None = None,
-                unit: str = "tasks") -> Verdict:
+                unit: str = "tasks", across: bool = False) -> Verdict:
     """The claim over every ``key`` (values of the ``by`` fields: a task, or (task, count))
     that has paired seeds: one Holm family, its entries, the count and the evidence.
-    ``floors``: ``{task: {measure: expert-vs-expert value}}`` for the divergences' bound."""
+    ``floors``: ``{task: {measure: expert-vs-expert value}}`` for the divergences' bound.
+    ``across``: also judge it across the keys (:func:`judge_across`), the word for a grid
+    whose keys have too few seeds each."""
     keys = list(keys or dict.fromkeys(tuple(o.get(f) for f in by) for o in obs))
     members = []
     for k in keys:
@@ -381,7 +414,8 @@ def judge_claim(claim: Claim, obs, keys=None, measure=None, note: str = "", by=(
                         start_level(obs, k1, claim.start, by), floor))
     entries = judge_family(claim, members, competence)
     return Verdict(claim.name, claim.source, claim.rule, count(entries, unit),
-                   evidence(claim, entries, note), claim.reason, entries)
+                   evidence(claim, entries, note), claim.reason, entries,
+                   judge_across(claim, members, competence) if across else None)
 
 
 # -- calibration: what the rule does under a true null, and its power --------------------------------
