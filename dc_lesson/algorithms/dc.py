@@ -184,9 +184,10 @@ FLOW_STORED_NAMES = {"flow_iterations": "iterations", "flow_hidden": "hidden", "
 
 # PPO settings DC sets itself, each for a reason; a ``ppo`` that sets one otherwise is refused,
 # never silently overridden.
-PPO_SET_BY_DC = {"lr": "DCConfig.lr, one AdamW rate for both copies",
-                 "max_grad_norm": "DCConfig.max_grad_norm, one clip for both steps",
-                 "anneal_lr": "False: DC's rate is not annealed"}
+PPO_SET_BY_DC = {"lr": "DC's one AdamW rate for both copies: set DCConfig.lr instead",
+                 "max_grad_norm": "DC's one clip for both steps: set DCConfig.max_grad_norm "
+                                  "instead",
+                 "anneal_lr": "DC's rate is not annealed: set ppo.anneal_lr=False"}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -241,8 +242,7 @@ class DCConfig:
         for name, why in PPO_SET_BY_DC.items():
             value = getattr(self.ppo, name)
             if value != mine[name] and (name == "anneal_lr" or value != getattr(default, name)):
-                raise ValueError(f"DCConfig.ppo.{name} = {value!r} is not read: DC uses {why}; "
-                                 f"set that instead")
+                raise ValueError(f"DCConfig.ppo.{name} = {value!r} is not read: {why}")
         for name, allowed in (("update", UPDATES), ("reward", REWARDS),
                               ("optimizer_state", OPTIMIZER_STATES)):
             if getattr(self, name) not in allowed:
