@@ -370,7 +370,11 @@ def test_the_budget_is_the_latest_plateau_of_the_learners_that_learn():
                     "curve_steps": curve_steps})
         obs.append({"row": "ndi", "part": "learn", "task": "hopper", "seed": s, "start": 0.1,
                     "final": 0.1, "curve": [0.1] * 8, "curve_steps": curve_steps})
+        obs.append({"row": "ppo", "part": "learn", "task": "hopper", "seed": s, "start": 0.1,
+                    "final": 0.9, "curve": [0.1] * 6 + [0.9] * 2, "curve_steps": curve_steps})
     got = {(r["task"], r["learner"]): r for r in report.budgets({"observations": obs})}
+    assert got[("hopper", "PPO (task reward)")]["flattens at"] == 700_000   # the control:
+    # shown, but no later grid runs it, so it does not set the budget
     assert got[("hopper", "DC")]["flattens at"] == 300_000
     assert got[("hopper", "GAIL")]["flattens at"] == 500_000
     assert got[("hopper", "NDI")]["flattens at"] == 100_000       # never rose: flat at once

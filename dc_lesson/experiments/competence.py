@@ -246,7 +246,10 @@ def budgets(rec: dict) -> list[dict]:
     (:func:`plateau`) and its final level; then per task the budget, the latest plateau
     among the learners that pass the learn part there (a curve that never rose flattens at
     once and would say nothing), None while none does.  The keep part is not asked: it
-    judges stability, the budget asks how long learning takes."""
+    judges stability, the budget asks how long learning takes.  The control (PPO on the
+    task's own reward, ``studies.competence.CONTROL``) is shown but does not set the budget:
+    no later grid runs it (decided in the sixth week, after its hopper curve, whose late dips
+    on two seeds had set hopper's budget, was on record; the chapter says so)."""
     out = []
     for task in _study.LEARN_TASKS:
         curves_ = curves(rec, "learn", task)
@@ -256,7 +259,7 @@ def budgets(rec: dict) -> list[dict]:
         for name, c in curves_.items():
             at = plateau(c["steps"], c["mean"])
             passes = rows_[name]["word"] == "passes"
-            if passes and at is not None:
+            if passes and at is not None and name != NAMES[_study.CONTROL]:
                 learned.append(at)
             out.append({"task": task, "learner": name, "seeds": c["seeds"],
                         "final level": float(np.mean(c["mean"][-PLATEAU_TAIL:])),

@@ -56,6 +56,7 @@ from dc_lesson.experiments.studies import _common, _imitation as _im
 
 NAME = "competence"
 LEARNERS = ("ppo", "gail", "dril", "pwil", "ndi", "gpril", "dc")
+CONTROL = "ppo"   # the RL base on the task's own reward: a control, run by no later grid
 KEEP_TASKS = ("cartpole", "hopper")
 LEARN_TASKS = ("hopper", "halfcheetah")
 N_DEMOS = 4
