@@ -538,7 +538,7 @@ if gate_record is not None:
 # is flat from the start and says nothing). PPO on the task's own reward is shown but does
 # not set a budget: it is the gate's control, and no later grid runs it. That exclusion was
 # decided after its hopper curve was on record (its late dips on two seeds had set hopper's
-# budget at 1.4 million interactions); the table shows its plateau beside the others'. A
+# budget); the table shows its plateau beside the others'. A
 # plateau at the last checkpoints but one means the curve was still rising when it ended.
 
 # %%
