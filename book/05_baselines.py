@@ -168,7 +168,10 @@ shown(log[["steps", "reward_mean", "share_below", "bc_nll", "episode_return"]])
 # PWIL asks for every mode. In practice the kernel is a few *expert* standard deviations
 # wide, and PPO's exploration puts a learner's pairs far outside it, so the reward can be
 # about 0 almost everywhere (the live run's `reward_mean` below; the module's docstring has
-# the measurement); Table I shows what is left of the principle.
+# the measurement); Table I shows what is left of the principle. The competence study below
+# widens the kernel to $\beta = 1$ (`competence.FIXES`, with the probes that chose it): at
+# $\beta = 5$ PWIL's own reward rose while the hopper stood still near the expert's first
+# states, the only ones that paid.
 #
 # ```
 # PWIL(expert pairs D_E)                                       dc_lesson.algorithms.pwil

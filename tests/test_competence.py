@@ -125,7 +125,11 @@ def test_the_grid_has_every_learner_on_every_part_and_seed(name):
 # all four, its worst checkpoint at most 0.20 below the start. The test stays a strict expected failure of the smoke proxy, not of the learner.
 # NDI with the study's settings (entropy bonus off, advantages not standardised): drops
 # 0.00003 / 0.00001 / 0.00001, so it passes (it dropped 0.69 on seed 1 before).
-FAILS_TODAY = {"ppo", "gpril"}
+# PWIL with the study's kernel (beta = 1, which lets it learn hopper): drops 0 / 0 / 0.49 on
+# seeds 0-2 here (5 December, sixth session); the wider kernel pays a graded reward from
+# the start, and at smoke's few iterations one seed's steps carry it off. The lesson cells
+# say whether it keeps the start at the study's budget.
+FAILS_TODAY = {"ppo", "gpril", "pwil"}
 SEEDS = 3
 
 

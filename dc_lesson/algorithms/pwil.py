@@ -58,7 +58,10 @@ kernel is a few *expert* standard deviations wide, the expert's states on a reac
 target or a balanced cartpole barely vary, and PPO's Gaussian exploration (std 0.6) alone puts
 a learner's pairs hundreds of such deviations away, so the reward is 0 almost everywhere:
 reacher1 from the BC warm start ended at 582 against its start's 578 (40k interactions), from
-a fresh policy at 0.
+a fresh policy at 0.  The competence study (issue 38) runs PWIL with ``beta = 1``, a kernel
+five times wider, which pays along the way to the expert's states: from a weak hopper start
+it learns where the paper's 5 does not (``experiments.studies.competence.FIXES`` has the
+probes).
 
 Determinism: ``seed`` decides the network initialisation, the subsampling offsets, PPO's
 generator and the episode seeds.
