@@ -65,7 +65,10 @@ def test_the_summary_puts_the_reason_beside_the_word():
     got = {(r["task"], r["word"], r["reason"]) for r in rows}
     assert got == {("reacher1", "reproduced", ""), ("hopper", "not judged",
                                                     "start at the ceiling"),
-                   ("cartpole", "not judged", "fewer than 5 paired seeds")}
+                   ("cartpole", "not judged", "fewer than 5 paired seeds"),
+                   # the claim across tasks: cartpole's four seeds count as one unit there,
+                   # hopper's ceiling start none, so two tasks, fewer than the rule needs
+                   ("across tasks", "not judged", "fewer than 5 tasks")}
     line = w.claim_line(next(v for v in t3.verdicts(rec) if v.claim ==
                              claims.DC_BEATS_BC.name))
     assert line == (f"* **{claims.DC_BEATS_BC.name}**: reproduced on reacher1 (4); not "
