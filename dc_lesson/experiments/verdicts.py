@@ -362,7 +362,8 @@ def count(entries, unit: str = "tasks") -> str:
 def evidence(claim: Claim, entries, note: str = "") -> str:
     """Each entry's difference, interval, seeds, Holm p and word.  A difference of a bounded
     measure prints its interval clipped to the difference's limits (``limits.bounds``: a
-    mode-TV difference lies in [-1, 1]); the word was decided on the unclipped interval."""
+    mode-TV difference lies in [-1, 1]); the word was decided on the unclipped interval.  A
+    member not judged reads "not judged" here: its reason is said once, by :func:`count`."""
     limits = _limits.bounds(claim.measure, difference=True)
     parts = []
     for e in entries:
@@ -370,8 +371,9 @@ def evidence(claim: Claim, entries, note: str = "") -> str:
         band = (f"[{fmt_num(lo)}, {fmt_num(hi)}]" if np.isfinite(e[3]) and np.isfinite(e[4])
                 else "(no interval)")
         p = f", p (Holm) {e[6]:.3f}" if np.isfinite(e[6]) else ""
+        word = NOT_JUDGED if kind(e[1]) == NOT_JUDGED else e[1]
         parts.append(f"{label(e[0])}: {claim.a} - {claim.b} = {fmt_num(e[2])} {band} over "
-                     f"{e[5]} seeds{p} -> {e[1]}")
+                     f"{e[5]} seeds{p} -> {word}")
     return ("; ".join(parts) or "no paired results") + (f" ({note})" if note else "")
 
 
