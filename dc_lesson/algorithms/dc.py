@@ -96,8 +96,7 @@ The paper's averaging is this with u = 0 and x_i reset to z each iteration.
   integral (``flow.eval_step_size``, ``flow.eval_quadrature``; on held-out expert states,
   against the reference solver, about 0.04 nats mean error, 0.24 at most, and a rank
   correlation of 0.99, the order being what the scaled reward reads), and the flow's tanh by
-  NumPy's kernel
-  (``flow.tanh``; ``density._trace``).  Runs before 2026-12-04 used steps of 0.25, 4 nodes
+  NumPy's kernel (``flow.tanh``; ``density._trace``).  Runs before 2026-12-04 used steps of 0.25, 4 nodes
   and torch's tanh (:data:`STORED_NUMERICS`); ``dc-lesson perf dc-fit --variant defaults``
   compares the two over ten seeds.  Fitted on up to ``flow_states`` expert states in loop 0
   (``flow.iterations`` steps), refitted in later loops on the same number of expert and
@@ -182,8 +181,8 @@ FLOW_STORED_NAMES = {"flow_iterations": "iterations", "flow_hidden": "hidden", "
                      "reward_step": "eval_step_size", "reward_nodes": "eval_quadrature",
                      "flow_tanh": "tanh"}
 
-# PPO settings DC sets itself, each for a reason; a ``ppo`` that sets one otherwise is refused,
-# never silently overridden.
+# PPO settings DC sets itself, each for a reason; a ``ppo`` that sets one to neither DC's own
+# PPO default (``_DC_PPO``) nor what DC uses is refused, never silently overridden.
 PPO_SET_BY_DC = {"lr": "DC's one AdamW rate for both copies: set DCConfig.lr instead",
                  "max_grad_norm": "DC's one clip for both steps: set DCConfig.max_grad_norm "
                                   "instead",
@@ -237,11 +236,9 @@ class DCConfig:
         if self.ppo.value_warmup is not None:   # never read by DC's loop: refuse, not ignore
             raise ValueError("DCConfig.ppo.value_warmup is PPO's own loop's; DC's critic "
                              "trains with its PPO step from the first iteration")
-        mine = {"lr": self.lr, "max_grad_norm": self.max_grad_norm, "anneal_lr": False}
-        default = PPOConfig()
         for name, why in PPO_SET_BY_DC.items():
             value = getattr(self.ppo, name)
-            if value != mine[name] and (name == "anneal_lr" or value != getattr(default, name)):
+            if value not in (getattr(self.ppo_config, name), getattr(_DC_PPO, name)):
                 raise ValueError(f"DCConfig.ppo.{name} = {value!r} is not read: {why}")
         for name, allowed in (("update", UPDATES), ("reward", REWARDS),
                               ("optimizer_state", OPTIMIZER_STATES)):

@@ -62,7 +62,6 @@ so it is the same density).
 from __future__ import annotations
 
 import dataclasses
-import json
 import math
 
 import numpy as np
@@ -127,7 +126,7 @@ class NDIConfig(_reward_ppo.PPOImitationConfig):
     def to_dict(self) -> dict:
         d = super().to_dict()
         d.update(_base.stored_flow(d.pop("flow"), FLOW_STORED_NAMES, _NDI_FLOW))
-        return json.loads(json.dumps(d))
+        return d
 
     def with_flow(self, **changes) -> "NDIConfig":
         """The same configuration with some of q's SoftFlow settings changed."""

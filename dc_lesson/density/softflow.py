@@ -152,6 +152,8 @@ from dc_lesson.nn.checkpoint import PolicyFileError, atomic_torch_save, load_che
 EXACT_TRACE_MAX_DIM = 100   # "auto" uses the exact trace up to this state dimension
 TRACES = ("exact", "hutchinson", "exact_autodiff")
 PROBES = ("rademacher", "gaussian")
+
+
 # -- configuration -------------------------------------------------------------------------------
 
 @dataclasses.dataclass(frozen=True)

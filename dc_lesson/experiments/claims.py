@@ -107,9 +107,9 @@ GAIL_LR_START = Claim(
     "the paper: GAIL 'tends to fail/crash when learning rates are 1e-3 and higher'; per rate "
     "of the gail_lr sweep from 1e-3 up, GAIL's final scaled return against the seed's own BC "
     "start, one Holm family over those rates (reproduced where it ends below its start). "
-    "Declared as a claim after a review found "
-    "chapter 2 wording each rate alone, outside the family and the start gates. Only a start "
-    "at the floor is gated: a start at the ceiling leaves all the room a fall needs",
+    "Declared as a claim after a review found chapter 2 wording each rate alone, outside "
+    "the family and the start gates. Only a start at the floor is gated: a start at the "
+    "ceiling leaves all the room a fall needs",
     gates=(FLOOR,))
 ABLATIONS = (LOOPS, EQUAL_BUDGET, LONG_LOOP, LR_ROBUST, FASTER, STABLE, CONVERGES,
              GAIL_LR_START)

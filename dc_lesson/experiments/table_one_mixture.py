@@ -22,7 +22,7 @@ better).  :func:`tally` groups the words by task; :func:`lines` renders them.
 from __future__ import annotations
 
 from dc_lesson.experiments.report import fmt_entry
-from dc_lesson.experiments import claims, verdicts as _verdicts
+from dc_lesson.experiments import verdicts as _verdicts
 from dc_lesson.experiments.table_one import TASKS, judge_entries, paired
 
 # (mixture row, the row it is compared with, the demonstrations, what the difference isolates)
@@ -69,21 +69,6 @@ def table(rec: dict, actions: str = "mean", digits: int = 3) -> list[dict]:
                 row[f"{label}: word"] = said[m][task]
             out.append(row)
     return out
-
-
-def verdict(entry: dict | None, measure: str, direction: int, rec: dict | None = None,
-            actions: str = "mean", competence: dict | str | None = "stored") -> str:
-    """The word for "the mixture row ``a`` of a paired entry is better" by the measure's
-    direction (the rule of :mod:`verdicts`, on its own: no family); not judged while a row's
-    learner has not shown competence (the stored gate by default)."""
-    if not entry or f"{measure}_diffs" not in entry:
-        return f"{_verdicts.NOT_JUDGED}: not run yet"
-    why = _verdicts.rows_gate((entry.get("a", ""), entry.get("b", "")),
-                              claims.competence_of(competence, rec))
-    if why:
-        return f"{_verdicts.NOT_JUDGED}: {why}"
-    floor = claims.floors(rec, actions).get(entry["task"], {}).get(measure)  # divergences
-    return _verdicts.word_of_diffs(entry[f"{measure}_diffs"], measure, direction, floor)
 
 
 def tally(rec: dict, actions: str = "mean") -> dict:
@@ -140,4 +125,4 @@ def shares(rec: dict, task: str, row: str, actions: str = "mean") -> dict:
 
 
 __all__ = ["COMPARISONS", "MEASURES", "count_words", "lines", "shares", "table", "tally",
-           "verdict"]
+           "words"]
