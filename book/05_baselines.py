@@ -126,6 +126,13 @@ def shown(log: pd.DataFrame) -> pd.DataFrame:
 #       π ← bc_steps BC steps on D_E (the mean network only)     bc.bc_step
 # ```
 #
+# How many BC steps per iteration is a choice the paper leaves to the code. The authors run
+# one epoch over their training pairs per PPO update (about 25 minibatches of 256 per 4,096
+# interactions at 4 demonstrations); the preset's 8 is a third of that, and with it DRIL
+# forgot cartpole starts its demonstrations do not cover, where the ensemble disagrees and
+# the -1 reward holds nothing in place. The competence gate below, and every grid after
+# it, runs DRIL with DC's own balance: one BC step per PPO minibatch step (40).
+#
 # The cell fits a small ensemble, computes $C$ of a few expert pairs by hand with NumPy's
 # covariance, and checks the library and the quantile rule.
 

@@ -297,6 +297,17 @@ def test_each_learner_s_own_fixes_reach_its_config_and_its_cells():
         assert all(json.dumps(k.split(".")[-1]) in text for k in fixes)   # part of its identity
 
 
+def test_dril_s_bc_steps_follow_dc_s_balance_rule_at_every_budget():
+    # the fix is a rule (one BC step per PPO minibatch step, as DC), not a tuned number
+    from dc_lesson.algorithms import dc
+    for name in ("smoke", "lesson", "paper"):
+        b = budget.get(name)
+        cfg = comp.learner_config("dril", b, "keep", 0, "cartpole")
+        assert cfg.bc_steps == cfg.ppo.n_epochs * cfg.ppo.n_minibatches
+    ppo = dc.DCConfig().ppo_config      # DC's own default follows the same rule
+    assert dc.DCConfig().bc_steps == ppo.n_epochs * ppo.n_minibatches
+
+
 def test_the_aggregate_reads_a_record_s_wall_clock_from_its_timing():
     # a sweep record keeps wall-clock figures apart from the numbers (cells.split_timing)
     b = budget.get("smoke")

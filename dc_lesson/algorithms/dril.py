@@ -42,8 +42,11 @@ Choices the paper or the issue leave open (each a field of :class:`DRILConfig`):
 * *Reward normalisation*: none.  The authors divide the reward by a running std of the
   discounted return; +-1 is already on the scale of the tasks' rewards.
 * *BC interleaving*: ``bc_steps`` minibatches of ``bc_batch`` expert pairs after each PPO
-  update, with their own AdamW at PPO's learning rate (the authors' "dril_bc" epochs per
-  update).  BC would pull the log-std down to the expert's tiny action noise and switch off
+  update, with their own AdamW at PPO's learning rate (the authors: one epoch of minibatches
+  of 100 over 80% of the pairs per PPO update of 2048 interactions).  The preset's 8 is a
+  third of their rate at 4 demonstrations and loses cartpole starts the demonstrations do not
+  cover; the competence study, and every grid run after it, takes DC's balance instead, one
+  BC step per PPO minibatch step (40; ``experiments.studies.competence.FIXES``).  BC would pull the log-std down to the expert's tiny action noise and switch off
   PPO's exploration, so the BC steps move only the mean network.
 * The start: with ``policy=None``, :func:`train` fits the BC warm start itself
   (``bc.warm_start_policy``, log-std reset to PPO's); the learning test passes a fresh policy
