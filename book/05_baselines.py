@@ -538,6 +538,25 @@ if gate_record is not None:
               "(in a venv with imitation 1.0.1)")
 
 # %% [markdown]
+# **A failure to learn, beside the control.** PPO on the task's own reward ran from the very
+# same weak starts. Where a learner on PPO fails to learn a task, the control says where the
+# shortfall lies: if PPO learns the task from those starts, it lies in what the learner puts
+# on PPO (its reward and its settings); if PPO does not learn it either, the budget or the
+# task fails first. Paired by seed, with the 95% t interval of the learner minus the control
+# (`competence.beside_control`); GPRIL has no RL step and is not read this way.
+
+# %%
+if gate_record is not None:
+    against = competence_report.beside_control(gate_record)
+    if against:
+        display(pd.DataFrame(against).drop(columns="reading").set_index(["learner", "task"])
+                .round(2).fillna("not run"))
+        display(Markdown("\n".join(f"* {r['learner']} on {r['task']}: {r['reading']}."
+                                    for r in against)))
+    else:
+        print("no learner on PPO fails the learn part on the cells on record")
+
+# %% [markdown]
 # **Where the curves flatten: the next grids' interactions.** The learn panels also say how
 # long learning takes, and the grids run again on that many interactions rather than a guess
 # (chapter 6). The rule, declared before the curves ran (`competence.plateau`): a mean curve

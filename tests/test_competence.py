@@ -246,6 +246,27 @@ def _record(obs):
             "complete": False, "benchmark": "competence"}
 
 
+def test_a_failure_to_learn_is_read_beside_the_control_on_the_same_starts():
+    from dc_lesson.experiments import competence as report
+
+    def seeds(learner, task, finals):
+        return [dict(o, seed=i, final=f, curve=[f]) for i, (o, f) in enumerate(
+            zip(_obs(learner, "learn", task, 0.02, 0.0, len(finals)), finals))]
+    obs = (seeds("ppo", "hopper", [0.95, 0.9, 0.97]) + seeds("gail", "hopper", [0.5, 0.4, 0.6])
+           + seeds("ppo", "halfcheetah", [0.2, 0.3]) + seeds("pwil", "halfcheetah", [0.1, 0.2])
+           + seeds("dril", "hopper", [0.9, 0.95, 0.99])          # passes: no row
+           + seeds("gpril", "hopper", [0.1, 0.1, 0.1])           # no RL step: no row
+           + seeds("ndi", "halfcheetah", [0.0, 0.0, 0.1]))      # the control ran seeds 0-1
+    got = {(r["learner"], r["task"]): r for r in report.beside_control(_record(obs))}
+    assert set(got) == {("GAIL", "hopper"), ("PWIL", "halfcheetah"), ("NDI", "halfcheetah")}
+    gail = got[("GAIL", "hopper")]
+    assert gail["paired seeds"] == 3 and gail["hi"] < 0
+    assert abs(gail["difference"] - (-0.45 - 0.5 - 0.37) / 3) < 1e-9    # paired by seed
+    assert "not in RL from this start" in gail["reading"]
+    assert "either" in got[("PWIL", "halfcheetah")]["reading"]       # PPO fails there too
+    assert got[("NDI", "halfcheetah")]["paired seeds"] == 2           # only seeds both ran
+
+
 def test_the_chapter_table_words_each_part_from_the_seeds_on_record():
     from dc_lesson.experiments import competence as report
     obs = _obs("gail", "keep", "cartpole", 1.0, 1.0, 9, [1.0, 1.0]) + \

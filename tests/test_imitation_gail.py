@@ -192,3 +192,17 @@ def test_a_tiny_run_from_a_bc_start_ends_as_our_policy(tmp_path):
     from dc_lesson.evaluation import evaluate_policy
     ev = evaluate_policy("hopper", policy, None, n_episodes=1, divergences=False)
     assert np.isfinite(ev["scaled_return"])
+
+
+def test_added_rows_join_a_stored_file_only_under_the_same_settings():
+    old = {"command": "a", "seeds": [0, 1], "revision": "r1", "time": "t", "task": "hopper",
+           "part": "learn", "steps": 10, "rows": [{"seed": 0, "final": 0.1},
+                                                   {"seed": 1, "final": 0.2}]}
+    new = {"revision": "r2", "task": "hopper", "part": "learn", "steps": 10,
+           "rows": [{"seed": 1, "final": 0.3}, {"seed": 3, "final": 0.4}]}
+    got = ig.merged(old, new, "b")
+    assert [(r["seed"], r["final"]) for r in got["rows"]] == [(0, 0.1), (1, 0.3), (3, 0.4)]
+    assert got["seeds"] == [0, 1, 3] and got["command"] == "a ; then b"
+    assert got["revisions"] == ["r1", "r2"]
+    with pytest.raises(ValueError, match="'steps' is 20 here and 10"):
+        ig.merged(old, {**new, "steps": 20}, "b")

@@ -271,6 +271,51 @@ def budgets(rec: dict) -> list[dict]:
     return out
 
 
+# The learners that learn by PPO on a reward of their own: beside the control (PPO on the
+# task's reward, from the very same weak starts) a failure to learn reads as the reward's or as
+# PPO's at this budget.  GPRIL has no RL step, so the control says nothing about it.
+ON_PPO = ("gail", "dril", "pwil", "ndi", "dc")
+
+
+def beside_control(rec: dict) -> list[dict]:
+    """Where a learner on PPO (:data:`ON_PPO`) fails the learn part on a task: its final scaled
+    return beside the control's on the seeds both ran (the same weak starts), the paired
+    difference with its 95% t interval, and what the control's own learn word says of the
+    failure: the RL base learns there (the shortfall is the learner's reward), does not learn
+    there either (the budget or the task, before any reward), or has not run yet."""
+    words = {(r["learner"], r["task"]): r["word"] for r in rows(rec) if r["part"] == "learn"}
+    control = _study.CONTROL
+    out = []
+    for learner in ON_PPO:
+        for task in _study.LEARN_TASKS:
+            if not words[(NAMES[learner], task)].startswith("fails"):
+                continue
+            ours = {r["seed"]: r["final"] for r in _runs(rec, learner, "learn", task)}
+            base = {r["seed"]: r["final"] for r in _runs(rec, control, "learn", task)}
+            seeds = sorted(set(ours) & set(base))
+            word = words[(NAMES[control], task)]
+            if not seeds:
+                reading = "the control has not run these starts yet"
+            elif word == "passes":
+                reading = ("PPO learns this task from the same starts: the shortfall lies in "
+                           "what the learner puts on PPO (its reward, its settings), not in "
+                           "RL from this start")
+            elif word.startswith("fails"):
+                reading = ("PPO does not learn this task from these starts either: the "
+                           "budget or the task fails first, before any reward")
+            else:
+                reading = "the control's own learn part is not decided yet"
+            m, lo, hi = (report.t_interval([ours[s] - base[s] for s in seeds])
+                         if seeds else (None, None, None))
+            out.append({"learner": NAMES[learner], "task": task, "paired seeds": len(seeds),
+                        "learner final": (float(np.mean([ours[s] for s in seeds]))
+                                          if seeds else None),
+                        "control final": (float(np.mean([base[s] for s in seeds]))
+                                          if seeds else None),
+                        "difference": m, "lo": lo, "hi": hi, "reading": reading})
+    return out
+
+
 def sentence(rec: dict) -> str:
     """What the gate says so far, in one paragraph rendered from the record."""
     words = gate_words(rec)
@@ -289,7 +334,7 @@ def sentence(rec: dict) -> str:
     return "On the cells on record, " + "; ".join(parts) + "."
 
 
-__all__ = ["AS_REFERENCE", "GRID_MARK", "NAMES", "PLATEAU_TAIL", "PLATEAU_TOLERANCE", "PRE_GATE",
-           "RESULT", "RULES", "STORED", "budgets", "curves", "gate_words", "load", "mapping",
-           "overview", "plateau", "reference_table", "resolve", "rows", "sentence", "status",
-           "under_gate"]
+__all__ = ["AS_REFERENCE", "GRID_MARK", "NAMES", "ON_PPO", "PLATEAU_TAIL", "PLATEAU_TOLERANCE",
+           "PRE_GATE", "RESULT", "RULES", "STORED", "beside_control", "budgets", "curves",
+           "gate_words", "load", "mapping", "overview", "plateau", "reference_table", "resolve",
+           "rows", "sentence", "status", "under_gate"]

@@ -42,6 +42,7 @@ import functools
 import sys
 import tempfile
 import time
+from pathlib import Path
 
 import gymnasium
 import numpy as np
@@ -56,7 +57,7 @@ from dc_lesson.evaluation import EVAL_SEED, CheckpointCurve, evaluate_policy
 from dc_lesson.nn import fast
 from dc_lesson.nn.policies import GaussianPolicy, RunningNorm
 from dc_lesson.perf.imitation_ref import LAYERS, ready
-from dc_lesson.storage import read_result, write_result
+from dc_lesson.storage import git_revision, read_result, write_result
 from dc_lesson.tasks.gym import GymEnv
 
 # The competence study's facts this benchmark shares.  perf does not import experiments
@@ -468,6 +469,27 @@ def run(task: str, seeds, *, part: str | None = None, steps: int | None = None,
             "rows": rows}
 
 
+# What must agree for two runs' rows to share one result file (``--add``): everything that
+# decides a row's numbers, not when or by which revision it ran.
+_PROVENANCE = ("command", "seeds", "revision", "time", "platform", "rows")
+
+
+def merged(old: dict, new: dict, new_command: str) -> dict:
+    """``old`` (a stored result) with ``new``'s rows added: a seed in both takes ``new``'s
+    row.  Refused, naming the field, when any setting differs (two protocols in one file
+    would pair rows that are not comparable)."""
+    for key in sorted((set(old) | set(new)) - set(_PROVENANCE) - {"benchmark"}):
+        if old.get(key) != new.get(key):
+            raise ValueError(f"cannot add these rows: {key!r} is {new.get(key)!r} here and "
+                             f"{old.get(key)!r} in the stored file; write another --out")
+    rows = {r["seed"]: r for r in old["rows"]}
+    rows.update({r["seed"]: r for r in new["rows"]})
+    return {**new, "rows": [rows[s] for s in sorted(rows)],
+            "command": f"{old['command']} ; then {new_command}",
+            "seeds": sorted(rows), "revisions": sorted(set(
+                old.get("revisions", [old.get("revision")]) + [new.get("revision")]))}
+
+
 def main(argv=None) -> dict:
     p = argparse.ArgumentParser(prog="python -m dc_lesson.perf.imitation_gail",
                                 description=" ".join(__doc__.split("\n")[:2]),
@@ -486,7 +508,13 @@ def main(argv=None) -> dict:
     p.add_argument("--curve-points", type=int, default=None,
                    help="checkpoint evaluations (default: the study's; 0: none)")
     p.add_argument("--out", default=None, help="write the result JSON here")
+    p.add_argument("--add", action="store_true",
+                   help="add these seeds' rows to the --out file already there (its settings "
+                        "must be these; a seed in both is replaced)")
     args = p.parse_args(argv)
+    if args.add and not (args.out and Path(args.out).exists()):
+        p.error(f"--add needs an existing --out file (got {args.out!r}): run without --add "
+                "to write a new one")
     ready(args.out, _imitation)
     b = _budget.get(args.budget) if args.budget else _budget.current()
     out = run(args.task, args.seeds, part=args.part, steps=args.steps, b=b,
@@ -501,9 +529,14 @@ def main(argv=None) -> dict:
               + {True: " (the same start as ours)", False: " (NOT the start of our cells)",
                  None: ""}[r["ours"]["same_start"]])
     if args.out:
-        write_result(args.out, {"benchmark": "imitation_gail", **out},
-                     command="python -m dc_lesson.perf.imitation_gail "
-                     + " ".join(argv if argv is not None else sys.argv[1:]), seeds=args.seeds)
+        command = "python -m dc_lesson.perf.imitation_gail " + " ".join(
+            argv if argv is not None else sys.argv[1:])
+        payload, seeds = {"benchmark": "imitation_gail", **out}, args.seeds
+        if args.add:
+            stored = read_result(args.out)
+            payload = merged(stored, {**payload, "revision": git_revision()}, command)
+            command, seeds = payload.pop("command"), payload.pop("seeds")
+        write_result(args.out, payload, command=command, seeds=seeds)
     return out
 
 
