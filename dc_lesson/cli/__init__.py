@@ -6,6 +6,7 @@
   dc-lesson expert train --task NAME    train (or resume) the PPO expert of NAME
                                         (a planner expert: write its settings)
   dc-lesson expert eval --task NAME     measure the expert of NAME (--episodes N)
+  dc-lesson expert dagger --task NAME   DAgger from NAME's planner (humanoid; --hours)
   dc-lesson demos --task NAME           roll out the expert of NAME into data/demos/
   dc-lesson train LEARNER --task NAME   train one learner (bc, ppo, gail, dc, dril, pwil,
                                         ndi, gpril) at the budget and evaluate it; --steps
@@ -77,7 +78,9 @@ def build_parser() -> argparse.ArgumentParser:
                        description="expert train: train (or resume from its checkpoint) the PPO "
                                    "expert of a task, then evaluate it.\nexpert eval: "
                                    "evaluate the expert of a task.", formatter_class=raw)
-    s.add_argument("what", choices=["train", "eval"], help="train or eval")
+    s.add_argument("what", choices=["train", "eval", "dagger"],
+                   help="train, eval, or dagger (a network expert distilled from the planner "
+                        "by DAgger: humanoid)")
     s.add_argument("--task", nargs="+", required=True, help="one or more task names")
     s.add_argument("--steps", type=positive_int, default=None,
                    help="train: total environment steps instead of the recipe's")
@@ -86,7 +89,8 @@ def build_parser() -> argparse.ArgumentParser:
                         "configuration) and train from the first update")
     s.add_argument("--hours", type=positive_float, default=None,
                    help="train, network experts (walker, ant, humanoid): stop SAC at its first "
-                        "checkpoint after this many hours; run again to resume")
+                        "checkpoint after this many hours; dagger: after the first round past "
+                        "them; run again to resume")
     s.add_argument("--episodes", type=positive_int, default=10,
                    help="evaluation episodes (default: 10)")
     s.set_defaults(func=cmd_expert)

@@ -116,6 +116,8 @@ def _expert(args) -> int:
     if args.what == "eval" and (args.steps is not None or args.restart
                                 or args.hours is not None):
         raise UsageError("--steps, --restart and --hours apply to expert train, not expert eval")
+    if args.what == "dagger":
+        return _dagger(args)
     for name in args.task:
         if args.hours is not None and name not in network.SAC_RECIPES:
             raise UsageError(f"--hours applies to the network experts "
@@ -155,6 +157,27 @@ def _expert(args) -> int:
         r = rollout.returns(rollout.collect(name, expert, args.episodes, seed=1))
         print(f"{name}: expert ({info['name']}) return {r.mean():.1f} ± {r.std():.1f} over "
               f"{len(r)} episodes")
+    return 0
+
+
+def _dagger(args) -> int:
+    from dc_lesson.experts import planner_dagger
+    if args.steps is not None or args.restart:
+        raise UsageError("--steps and --restart apply to expert train; DAgger's rounds are its "
+                         "recipe's (experts.planner_dagger.RECIPES)")
+    for name in args.task:
+        if name not in planner_dagger.RECIPES:
+            raise UsageError(f"expert dagger runs on {', '.join(planner_dagger.RECIPES)}, "
+                             f"not {name}")
+        out = planner_dagger.train(name, hours=args.hours, command=command_line())
+        if not out["done"]:
+            print(f"{name}: DAgger stopped after round {out['log'][-1]['round']} (labels in "
+                  f"{planner_dagger.paths(name)['labels']}); resume with: "
+                  f"dc-lesson expert dagger --task {name}")
+            continue
+        r = out["student_return"]
+        print(f"{name}: DAgger student return {r['mean']:.1f} ± {r['std']:.1f} over "
+              f"{r['n_episodes']} episodes; saved {planner_dagger.paths(name)['policy']}")
     return 0
 
 

@@ -141,6 +141,23 @@ def load_sac_actor(task: str, directory=None) -> Actor:
     return actor.eval()
 
 
+def fit_mean(student, opt, x, y, epochs: int, batch_size: int, gen: torch.Generator) -> float:
+    """``epochs`` passes of minibatch MSE of the student's mean on labels ``y`` at states
+    ``x`` (a Gaussian's NLL at fixed spread), in the order ``gen`` draws; the final MSE."""
+    x, y = torch.as_tensor(x), torch.as_tensor(y)
+    z = student.normalise(x)
+    for _ in range(epochs):
+        perm = torch.randperm(len(x), generator=gen)
+        for i in range(0, len(x), batch_size):
+            idx = perm[i:i + batch_size]
+            loss = ((student.mean_net(z[idx]) - y[idx]) ** 2).mean()
+            opt.zero_grad()
+            loss.backward()
+            opt.step()
+    with torch.no_grad():
+        return float(((student.mean_net(z) - y) ** 2).mean())
+
+
 DISTIL_SEED = 500     # episode seeds of DAgger round r: rollout seed DISTIL_SEED + r
 EVAL_SEED = 900       # the final comparison of teacher and student
 
@@ -172,22 +189,11 @@ def distil(task: str, teacher: Actor, config: DistilConfig = DISTIL, progress=pr
             student.update_obs_norm(torch.as_tensor(obs))
         xs.append(obs)
         ys.append(teacher.act_numpy(obs))
-        x = torch.as_tensor(np.concatenate(xs))
-        y = torch.as_tensor(np.concatenate(ys))
-        z = student.normalise(x)
-        for _ in range(config.epochs):
-            perm = torch.randperm(len(x), generator=gen)
-            for i in range(0, len(x), config.batch_size):
-                idx = perm[i:i + config.batch_size]
-                loss = ((student.mean_net(z[idx]) - y[idx]) ** 2).mean()
-                opt.zero_grad()
-                loss.backward()
-                opt.step()
-        with torch.no_grad():
-            mse = float(((student.mean_net(z) - y) ** 2).mean())
+        mse = fit_mean(student, opt, np.concatenate(xs), np.concatenate(ys), config.epochs,
+                       config.batch_size, gen)
         row = {"round": r, "rolled_out_by": "teacher" if r == 0 else "student",
-               "return": float(rollout.returns(eps).mean()), "states": int(len(x)),
-               "mse": mse}
+               "return": float(rollout.returns(eps).mean()),
+               "states": int(sum(len(x) for x in xs)), "mse": mse}
         log.append(row)
         if progress:
             progress(f"{task} DAgger round {r}: {row['rolled_out_by']} return "
