@@ -439,7 +439,9 @@ if t1 is not None:
 # the comparison it stands, DC's own included, because until then the comparison would
 # describe our implementation, not the paper's algorithm. The gate reads the cells on
 # record, so while the study accumulates a part that has not run says so rather than
-# passing.
+# passing, and a part with seeds still to run is decided only where no seed to come could
+# change its word: a gated dip, or more seeds ending below the start than the rule allows
+# of the full count (`competence.so_far`). Two perfect seeds of ten are not yet a pass.
 
 # %%
 from dc_lesson import budget as _budget_mod

@@ -246,6 +246,32 @@ def _record(obs):
             "complete": False, "benchmark": "competence"}
 
 
+def test_a_part_with_seeds_still_to_run_is_decided_only_where_they_cannot_change_it():
+    def runs(finals, dip=0.0):
+        return [{"start": 1.0, "final": f, "curve": [1.0 - dip]} for f in finals]
+    need = {"keep": 10, "learn": 5}
+    # three perfect seeds of ten: not yet a pass
+    assert comp.judge_part("keep", "cartpole", runs([1.0] * 3), n_seeds=10)[0] is None
+    # one of three ended low: within the rule's allowance of 1 in 10, so not yet a failure
+    assert comp.judge_part("keep", "cartpole", runs([1.0, 1.0, 0.5]), n_seeds=10)[0] is None
+    ok, why = comp.judge_part("keep", "cartpole", runs([1.0, 0.5, 0.5]), n_seeds=10)
+    assert ok is False and "allows 1 of 10" in why                  # no seed can undo it
+    assert comp.judge_part("keep", "cartpole", runs([1.0], dip=0.3), n_seeds=10)[0] is False
+    assert comp.judge_part("keep", "hopper", runs([1.0], dip=0.3), frozenset({"hopper"}),
+                           n_seeds=10)[0] is None                   # a knife-edge dip
+    learn = [{"start": 0.0, "final": 0.9, "curve": [0.9]}] * 2
+    assert comp.judge_part("learn", "hopper", learn, n_seeds=5) == (None, "2 of 5 seeds on "
+                                                                        "record")
+    assert comp.judge_part("learn", "hopper", learn * 3, n_seeds=5) == (True, "")
+    # the gate: a learner whose every part passes on some of its seeds has not yet passed
+    obs = [dict(r, row="dril", part="keep", task=t) for t in comp.KEEP_TASKS
+           for r in runs([1.0] * 2)]
+    obs += [dict(r, row="dril", part="learn", task=t) for t in comp.LEARN_TASKS for r in learn]
+    assert comp.gate(obs)["dril"]["passed"] is True                 # the seeds as the whole
+    got = comp.gate(obs, seeds=need)["dril"]
+    assert got["passed"] is None and "2 of 10 seeds on record" in got["reason"]
+
+
 def test_a_failure_to_learn_is_read_beside_the_control_on_the_same_starts():
     from dc_lesson.experiments import competence as report
 

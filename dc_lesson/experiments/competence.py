@@ -101,6 +101,7 @@ def rows(rec: dict) -> list[dict]:
     out = []
     knife = _study.stored_knife_edge()
     refs = _study.stored_references(rec.get("observations", []))
+    needed = _study.budget_seeds(rec) or {}
     for learner in _study.LEARNERS:
         for part, tasks in (("keep", _study.KEEP_TASKS), ("learn", _study.LEARN_TASKS)):
             for task in tasks:
@@ -114,10 +115,11 @@ def rows(rec: dict) -> list[dict]:
                     continue
                 ok, why = _study.judge_part(
                     part, task, [{k: r[k] for k in ("start", "final", "curve")} for r in runs],
-                    knife, refs.get((learner, part, task)))
+                    knife, refs.get((learner, part, task)), needed.get(part))
                 dip = max(r["start"] - min(r["curve"] or [r["final"]]) for r in runs)
+                short = len(runs) < needed.get(part, 0)
                 word = ({True: "passes", False: "fails: " + why,
-                         None: "not informative: " + why}[ok]
+                         None: ("not decided yet: " if short else "not informative: ") + why}[ok]
                         if not why.startswith(_study.REFERENCE_MATCHED) else
                         AS_REFERENCE + why[len(_study.REFERENCE_MATCHED):])
                 out.append({"learner": NAMES[learner], "part": part, "task": task,

@@ -25,7 +25,8 @@ all of them:
   passing.
 
 :func:`gate` turns the aggregate into one word per learner ("passed", or "failed the
-competence gate: <why>"); :func:`competence` gives the mapping ``verdicts`` reads, so a
+competence gate: <why>", or not yet decided while a part has seeds still to run and none of
+its failures is already certain: :func:`so_far`); :func:`competence` gives the mapping ``verdicts`` reads, so a
 comparison whose comparator failed is "not judged".  The thresholds are the issue's,
 declared before any cell ran.
 
@@ -40,6 +41,7 @@ from __future__ import annotations
 import copy
 import dataclasses
 import json
+import math
 import time
 
 import numpy as np
@@ -363,25 +365,66 @@ def learns(runs: list[dict]) -> tuple[bool | None, str]:
     return True, ""
 
 
+def so_far(part: str, runs: list[dict], n_seeds: int, gate_dip: bool = True
+           ) -> tuple[bool | None, str]:
+    """A part while fewer than its ``n_seeds`` seeds are on record: failed only where no seed
+    still to come can change the word (a gated dip, or more seeds ended below their start than
+    :data:`KEEP_SHARE` of ``n_seeds`` allows), else None: a pass or a shortfall on some of
+    the seeds is not yet the study's (one failed seed in three is within the keep rule's
+    allowance of ten; a learn mean moves with every seed)."""
+    have = f"{len(runs)} of {n_seeds} seeds on record"
+    if part == "keep" and runs:
+        ended = sum(r["final"] < r["start"] - KEEP_TOLERANCE for r in runs)
+        allowed = n_seeds - math.ceil(KEEP_SHARE * n_seeds - 1e-9)
+        if ended > allowed:
+            return False, (f"ended more than {KEEP_TOLERANCE} below its start on {ended} of "
+                           f"{have} (the rule allows {allowed} of {n_seeds})")
+        dip = max(r["start"] - min(r["curve"] or [r["final"]]) for r in runs)
+        if gate_dip and dip > MAX_DIP:
+            return False, f"a checkpoint fell {dip:.2f} below its start"
+    return None, have if runs else NOT_RUN
+
+
 def judge_part(part: str, task: str, runs: list[dict],
                knife: frozenset[str] = frozenset(),
-               reference: tuple[bool, str] | None = None) -> tuple[bool | None, str]:
+               reference: tuple[bool, str] | None = None,
+               n_seeds: int | None = None) -> tuple[bool | None, str]:
     """One part on one task: :func:`keeps` (its dip gated unless ``task`` is in ``knife``)
     or :func:`learns`; a failure that ``reference`` (:func:`matches_reference`) matches
-    passes, with :data:`REFERENCE_MATCHED` and the reference's evidence as its reason."""
-    ok, why = (keeps(runs, gate_dip=task not in knife) if part == "keep" else learns(runs))
+    passes, with :data:`REFERENCE_MATCHED` and the reference's evidence as its reason.
+    ``n_seeds``: the study's seeds for the part; with fewer on record the word is
+    :func:`so_far`'s (None: every run on record is taken as the whole part)."""
+    if n_seeds is not None and len(runs) < n_seeds:
+        ok, why = so_far(part, runs, n_seeds, gate_dip=task not in knife)
+    else:
+        ok, why = (keeps(runs, gate_dip=task not in knife) if part == "keep"
+                   else learns(runs))
     if ok is False and reference is not None and reference[0]:
         return True, f"{REFERENCE_MATCHED}{why}; {reference[1]}"
     return ok, why
 
 
+def part_seeds(b) -> dict[str, int]:
+    """The study's seeds per part at budget ``b``: what a part needs on record to be decided."""
+    return {"keep": b.competence_keep_seeds, "learn": b.competence_learn_seeds}
+
+
+def budget_seeds(aggregate: dict) -> dict[str, int] | None:
+    """:func:`part_seeds` of the budget an aggregate's cells ran at (None: not recorded)."""
+    name = aggregate.get("budget")
+    return part_seeds(_budget.get(name)) if name else None
+
+
 def gate(observations: list[dict], knife: frozenset[str] = frozenset(),
-         references: dict | None = None) -> dict[str, dict]:
+         references: dict | None = None,
+         seeds: dict[str, int] | None = None) -> dict[str, dict]:
     """Per learner: ``{"passed": bool | None, "reason": str}`` from the aggregate's
     observations.  False when a part on record fails (the reason names the failing parts),
-    None when none fails but a part is not run or not informative (the reason names those),
-    True when every part passes.  ``knife``: the knife-edge tasks, whose dips are not gated;
-    ``references``: :func:`stored_references`' mapping, a failure it matches passes."""
+    None when none fails but a part is not run, not informative or not yet run on all its
+    seeds (the reason names those), True when every part passes.  ``knife``: the knife-edge
+    tasks, whose dips are not gated; ``references``: :func:`stored_references`' mapping, a
+    failure it matches passes; ``seeds``: :func:`part_seeds`, the seeds a part needs before
+    it is decided (None: the seeds on record are the whole part)."""
     references = references or {}
     out = {}
     for learner in LEARNERS:
@@ -392,7 +435,8 @@ def gate(observations: list[dict], knife: frozenset[str] = frozenset(),
                         for o in observations if o["row"] == learner and o["part"] == part
                         and o["task"] == task]
                 ok, why = judge_part(part, task, runs, knife,
-                                     references.get((learner, part, task)))
+                                     references.get((learner, part, task)),
+                                     (seeds or {}).get(part))
                 verdicts.append(ok)
                 reasons.append((ok, f"{part} on {task}: {why}"))
         passed = (False if False in verdicts else None if None in verdicts else True)
@@ -408,8 +452,8 @@ def competence(aggregate: dict, knife: frozenset[str] = frozenset(),
     did not pass, with the phrase a "not judged" verdict prints after its name.  The gate is
     recomputed from the observations by today's rules (``knife``: the knife-edge tasks), so
     a rule changed since the aggregate was written reaches every verdict."""
-    g = (gate(aggregate["observations"], knife, references) if "observations" in aggregate
-         else aggregate["gate"])
+    g = (gate(aggregate["observations"], knife, references, budget_seeds(aggregate))
+         if "observations" in aggregate else aggregate["gate"])
     return {k: (f"failed the competence gate — {v['reason']}" if v["passed"] is False
                 else f"has not yet shown competence — {v['reason']}")
             for k, v in g.items() if v["passed"] is not True}
@@ -432,7 +476,7 @@ def aggregate(records, b) -> dict:
              "step_scale": STEP_SCALE, "knife_edge_share": KNIFE_EDGE_SHARE,
              "dip_not_gated_on": sorted(knife), "reference_min_seeds": REFERENCE_MIN_SEEDS,
              "reference_margin": REFERENCE_MARGIN}
-    return {"gate": gate(obs, knife, stored_references(obs)), "rules": rules,
+    return {"gate": gate(obs, knife, stored_references(obs), part_seeds(b)), "rules": rules,
             "steps": {"keep": b.competence_keep_steps, "learn": b.competence_learn_steps},
             "observations": obs}
 
@@ -442,7 +486,8 @@ STUDY = cells.Study(NAME, "every RL learner keeps a perfect start and learns fro
                     result_file="competence.json")
 
 __all__ = ["DIP_NOT_GATED", "KEEP_TASKS", "KNIFE_EDGE_SHARE", "LEARNERS", "LEARN_TASKS", "NAME",
-           "STEP_SCALE", "STUDY", "aggregate", "cells_at", "competence", "gate", "judge_part",
+           "STEP_SCALE", "STUDY", "aggregate", "budget_seeds", "cells_at", "competence", "gate",
+           "judge_part", "part_seeds", "so_far",
            "keeps", "knife_edge", "learns", "matches_reference", "reference_records",
            "reference_rows", "run_cell",
            "stored_knife_edge", "stored_references"]
