@@ -270,6 +270,10 @@ def test_a_part_with_seeds_still_to_run_is_decided_only_where_they_cannot_change
     assert comp.gate(obs)["dril"]["passed"] is True                 # the seeds as the whole
     got = comp.gate(obs, seeds=need)["dril"]
     assert got["passed"] is None and "2 of 10 seeds on record" in got["reason"]
+    from dc_lesson.experiments import competence as report
+    rec = dict(_record([dict(o) for o in obs]), budget="lesson")     # 10 and 5 seeds a part
+    assert set(report.overview(rec)["DRIL"].values()) == {"not decided (2)"}
+    assert report.gate_words(rec)["DRIL"].startswith("not yet shown")
 
 
 def test_a_failure_to_learn_is_read_beside_the_control_on_the_same_starts():

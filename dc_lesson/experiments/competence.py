@@ -119,7 +119,7 @@ def rows(rec: dict) -> list[dict]:
                 dip = max(r["start"] - min(r["curve"] or [r["final"]]) for r in runs)
                 short = len(runs) < needed.get(part, 0)
                 word = ({True: "passes", False: "fails: " + why,
-                         None: ("not decided yet: " if short else "not informative: ") + why}[ok]
+                         None: (NOT_DECIDED if short else "not informative: ") + why}[ok]
                         if not why.startswith(_study.REFERENCE_MATCHED) else
                         AS_REFERENCE + why[len(_study.REFERENCE_MATCHED):])
                 out.append({"learner": NAMES[learner], "part": part, "task": task,
@@ -131,6 +131,7 @@ def rows(rec: dict) -> list[dict]:
 
 
 AS_REFERENCE = "as the reference: "   # a failed part a standard library's run matches
+NOT_DECIDED = "not decided yet: "     # a part with seeds still to run (studies.competence.so_far)
 
 
 def _passes(word: str) -> bool:
@@ -139,8 +140,8 @@ def _passes(word: str) -> bool:
 
 def gate_words(rec: dict) -> dict[str, str]:
     """Per learner, the gate's word on the seeds on record: "passed" (every part passes),
-    "failed: why" (a part on record fails), or "not yet shown: why" (a part not run or not
-    informative, none failing)."""
+    "failed: why" (a part on record fails), or "not yet shown: why" (a part not run, not
+    decided on the seeds on record, or not informative; none failing)."""
     out: dict[str, list] = {}
     for r in rows(rec):
         out.setdefault(r["learner"], []).append(r)
@@ -157,14 +158,15 @@ def gate_words(rec: dict) -> dict[str, str]:
 
 
 def overview(rec: dict) -> dict[str, dict[str, str]]:
-    """Learner -> {"part: task": "passes" | "fails" | "not run" | "not informative"}: the
-    table's shape at a glance."""
+    """Learner -> {"part: task": "passes" | "fails" | "not run" | "not decided" |
+    "not informative"}: the table's shape at a glance."""
     out: dict[str, dict[str, str]] = {}
     for r in rows(rec):
         w = r["word"]
         short = ("passes" if w == "passes" else "as the reference" if _passes(w) else
                  "fails" if w.startswith("fails") else
-                 "not run" if w == "not run yet" else "not informative")
+                 "not run" if w == "not run yet" else
+                 "not decided" if w.startswith(NOT_DECIDED) else "not informative")
         out.setdefault(r["learner"], {})[f"{r['part']}: {r['task']}"] = (
             short + (f" ({r['seeds']})" if r["seeds"] else ""))
     return out
@@ -336,7 +338,7 @@ def sentence(rec: dict) -> str:
     return "On the cells on record, " + "; ".join(parts) + "."
 
 
-__all__ = ["AS_REFERENCE", "GRID_MARK", "NAMES", "ON_PPO", "PLATEAU_TAIL", "PLATEAU_TOLERANCE",
-           "PRE_GATE", "RESULT", "RULES", "STORED", "beside_control", "budgets", "curves",
-           "gate_words", "load", "mapping", "overview", "plateau", "reference_table", "resolve",
-           "rows", "sentence", "status", "under_gate"]
+__all__ = ["AS_REFERENCE", "GRID_MARK", "NAMES", "NOT_DECIDED", "ON_PPO", "PLATEAU_TAIL",
+           "PLATEAU_TOLERANCE", "PRE_GATE", "RESULT", "RULES", "STORED", "beside_control",
+           "budgets", "curves", "gate_words", "load", "mapping", "overview", "plateau",
+           "reference_table", "resolve", "rows", "sentence", "status", "under_gate"]
