@@ -39,3 +39,20 @@ def test_a_resumed_run_ends_as_an_uninterrupted_one_and_other_labels_are_refused
         assert torch.equal(v, sb["state_dict"][k]), k
     with pytest.raises(ValueError, match="another DAgger configuration"):
         pd.train("humanoid", dataclasses.replace(TINY, epochs=3), directory=b, progress=None)
+
+
+def test_the_planner_acts_with_probability_beta_and_labels_every_state():
+    class Fake:   # a planner whose action is 1 everywhere
+        def __call__(self, obs):
+            return np.ones((len(obs), 2))
+    obs = np.zeros((4000, 3), np.float32)
+    for beta, share in ((0.0, 0.0), (1.0, 1.0)):
+        lab = pd.Labeller(Fake(), lambda o: np.zeros((len(o), 2)), beta)
+        assert lab(obs).mean() == share
+    lab = pd.Labeller(Fake(), lambda o: np.zeros((len(o), 2)), 0.25,
+                      np.random.default_rng(1))
+    acted = lab(obs)[:, 0]
+    assert abs(acted.mean() - 0.25) < 0.03 and set(acted) == {0.0, 1.0}
+    assert np.all(lab.labels[0] == 1) and len(lab.obs[0]) == 4000   # every state labelled
+    with pytest.raises(ValueError, match="probability"):
+        pd.DaggerConfig(beta=1.5)
