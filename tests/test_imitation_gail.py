@@ -204,5 +204,7 @@ def test_added_rows_join_a_stored_file_only_under_the_same_settings():
     assert [(r["seed"], r["final"]) for r in got["rows"]] == [(0, 0.1), (1, 0.3), (3, 0.4)]
     assert got["seeds"] == [0, 1, 3] and got["command"] == "a ; then b"
     assert got["revisions"] == ["r1", "r2"]
+    third = ig.merged(got, {**new, "revision": "r3", "rows": [{"seed": 4, "final": 0.5}]}, "c")
+    assert third["seeds"] == [0, 1, 3, 4] and third["revisions"] == ["r1", "r2", "r3"]
     with pytest.raises(ValueError, match="'steps' is 20 here and 10"):
         ig.merged(old, {**new, "steps": 20}, "b")

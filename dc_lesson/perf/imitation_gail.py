@@ -471,7 +471,7 @@ def run(task: str, seeds, *, part: str | None = None, steps: int | None = None,
 
 # What must agree for two runs' rows to share one result file (``--add``): everything that
 # decides a row's numbers, not when or by which revision it ran.
-_PROVENANCE = ("command", "seeds", "revision", "time", "platform", "rows")
+_PROVENANCE = ("command", "seeds", "revision", "revisions", "time", "platform", "rows")
 
 
 def merged(old: dict, new: dict, new_command: str) -> dict:
