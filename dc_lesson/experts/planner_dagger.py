@@ -182,14 +182,16 @@ def train(task: str, config: DaggerConfig | None = None, *, hours: float | None 
         if r == 0:
             student.update_obs_norm(torch.as_tensor(xs[0]))
         mse = fit(r)
-        row = {"round": r, "rolled_out_by": "planner" if r == 0 else "student",
+        row = {"round": r, "rolled_out_by": "planner" if r == 0 else "mixture",
+               "beta": 1.0 if r == 0 else config.beta ** r,
                "return": float(rollout.returns(eps).mean()), "steps": config.episode_steps,
                "labels": int(sum(len(x) for x in xs)), "mse": mse,
                "seconds": round(time.time() - t0, 1)}
         log.append(row)
         _save(task, config, xs, ys, log, directory)
         if progress:
-            progress(f"{task} DAgger round {r}: {row['rolled_out_by']} return {row['return']:.1f}"
+            progress(f"{task} DAgger round {r} (the planner acts with probability "
+                     f"{row['beta']:.2f}): return {row['return']:.1f}"
                      f" over {config.episode_steps} steps; {row['labels']:,} labels, MSE "
                      f"{mse:.4f}")
         if hours is not None and time.time() - t0 > 3600 * hours and r + 1 < config.rounds:
