@@ -208,3 +208,14 @@ def test_added_rows_join_a_stored_file_only_under_the_same_settings():
     assert third["seeds"] == [0, 1, 3, 4] and third["revisions"] == ["r1", "r2", "r3"]
     with pytest.raises(ValueError, match="'steps' is 20 here and 10"):
         ig.merged(old, {**new, "steps": 20}, "b")
+
+
+def test_add_refuses_another_part_before_any_compute(tmp_path, monkeypatch, capsys):
+    import json
+    out = tmp_path / "r.json"
+    out.write_text(json.dumps({"task": "hopper", "part": "learn", "rows": []}))
+    monkeypatch.setattr(ig, "ready", lambda *a, **k: None)
+    monkeypatch.setattr(ig, "run", lambda *a, **k: pytest.fail("computed before refusing"))
+    with pytest.raises(SystemExit):
+        ig.main(["--task", "hopper", "--part", "keep", "--out", str(out), "--add"])
+    assert "part is 'keep' here and 'learn'" in capsys.readouterr().err

@@ -515,6 +515,13 @@ def main(argv=None) -> dict:
     if args.add and not (args.out and Path(args.out).exists()):
         p.error(f"--add needs an existing --out file (got {args.out!r}): run without --add "
                 "to write a new one")
+    if args.add:   # before the compute: the settings the arguments decide must agree
+        stored = read_result(args.out)
+        asked = {"task": args.task, "part": args.part or default_part(args.task)}
+        for key, value in asked.items():
+            if stored.get(key) != value:
+                p.error(f"--add: {key} is {value!r} here and {stored.get(key)!r} in "
+                        f"{args.out}; write another --out")
     ready(args.out, _imitation)
     b = _budget.get(args.budget) if args.budget else _budget.current()
     out = run(args.task, args.seeds, part=args.part, steps=args.steps, b=b,
