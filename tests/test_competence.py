@@ -446,6 +446,13 @@ def test_the_budget_is_the_latest_plateau_of_the_learners_that_learn():
     assert got[("hopper", "NDI")]["flattens at"] == 100_000       # never rose: flat at once
     assert got[("hopper", "budget")]["flattens at"] == 500_000    # NDI does not count
     assert got[("halfcheetah", "budget")]["flattens at"] is None
+    # a learner that failed the gate runs in no grid: its slower curve sets no budget
+    gate = {"gail": {"passed": False, "reason": "keep on cartpole"},
+            "dc": {"passed": True, "reason": ""}}
+    got = {(r["task"], r["learner"]): r
+           for r in report.budgets({"observations": obs, "gate": gate})}
+    assert got[("hopper", "GAIL")]["flattens at"] == 500_000      # still shown
+    assert got[("hopper", "budget")]["flattens at"] == 300_000    # DC's alone
 
 
 def test_the_gate_vouches_only_for_grids_made_under_its_settings(monkeypatch):

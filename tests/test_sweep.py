@@ -154,8 +154,11 @@ def test_a_new_row_is_estimated_from_its_learners_cost_per_interaction():
         0.002 * sweep.interactions(four.config))
     assert sweep.estimate(one, costs, "lesson", rates) == pytest.approx(
         0.002 * sweep.interactions(one.config))
-    costs[("dc-loops=4", "hopper", "lesson")] = [300.0]           # measured: its own row wins
-    assert sweep.estimate(four, costs, "lesson", rates) == 300.0
+    costs[("dc-loops=4", "hopper", "lesson")] = [300.0]           # the row at other steps:
+    assert sweep.estimate(four, costs, "lesson", rates) == pytest.approx(   # the rate wins
+        0.002 * sweep.interactions(four.config))
+    costs[("dc-loops=4", "hopper", "lesson", sweep.interactions(four.config))] = [300.0]
+    assert sweep.estimate(four, costs, "lesson", rates) == 300.0   # measured: its own row wins
     assert sweep.interactions({"steps": 0}) is None               # BC: no interactions
 
 

@@ -248,13 +248,15 @@ def budgets(rec: dict) -> list[dict]:
     """The interactions the next grids use, from the "learns" curves (issue 41, item 2): per
     learn task and learner with seeds on record, where its mean curve flattens
     (:func:`plateau`) and its final level; then per task the budget, the latest plateau
-    among the learners that pass the learn part there (a curve that never rose flattens at
-    once and would say nothing), None while none does.  The keep part is not asked: it
+    among the learners that pass the learn part there and have not failed the gate (the
+    grids run no failed learner, so its slower curve would buy interactions no row uses; a
+    curve that never rose flattens at once and would say nothing), None while none does.  The keep part is not asked: it
     judges stability, the budget asks how long learning takes.  The control (PPO on the
     task's own reward, ``studies.competence.CONTROL``) is shown but does not set the budget:
     no later grid runs it (decided in the sixth week, after its hopper curve, whose late dips
     on two seeds had set hopper's budget, was on record; the chapter says so)."""
     out = []
+    failed = {k for k, g in rec.get("gate", {}).items() if g["passed"] is False}
     for task in _study.LEARN_TASKS:
         curves_ = curves(rec, "learn", task)
         rows_ = {r["learner"]: r for r in rows(rec) if r["part"] == "learn"
@@ -263,14 +265,16 @@ def budgets(rec: dict) -> list[dict]:
         for name, c in curves_.items():
             at = plateau(c["steps"], c["mean"])
             passes = rows_[name]["word"] == "passes"
-            if passes and at is not None and name != NAMES[_study.CONTROL]:
+            gated_out = any(NAMES[k] == name for k in failed)
+            if passes and at is not None and name != NAMES[_study.CONTROL] and not gated_out:
                 learned.append(at)
             out.append({"task": task, "learner": name, "seeds": c["seeds"],
                         "final level": float(np.mean(c["mean"][-PLATEAU_TAIL:])),
                         "flattens at": at, "learns": rows_[name]["word"]})
         out.append({"task": task, "learner": "budget", "seeds": None, "final level": None,
                     "flattens at": max(learned) if learned else None,
-                    "learns": f"the latest plateau of {len(learned)} learner(s) that learn"
+                    "learns": f"the latest plateau of {len(learned)} learner(s) that learn "
+                              f"and have not failed the gate"
                     if learned else "no learner passes the learn part here yet"})
     return out
 

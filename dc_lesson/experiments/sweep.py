@@ -97,7 +97,8 @@ def _finished(root=None):
 
 def measured_costs(root=None, since: str | None = None,
                    until: str | None = None) -> dict[tuple, list[float]]:
-    """Wall seconds of every finished cell on disk, by (learner row, task, budget); with
+    """Wall seconds of every finished cell on disk, by (learner row, task, budget), and for
+    the cells that interact also by (learner row, task, budget, interactions); with
     ``since`` / ``until`` (ISO times, UTC), of the cells finished in [since, until) only."""
     out: dict[tuple, list[float]] = {}
     for r in _finished(root):
@@ -106,8 +107,11 @@ def measured_costs(root=None, since: str | None = None,
             continue
         c = r["cell"]
         row = c["learner"] + (f"-{c['variant']}" if c["variant"] else "")
-        out.setdefault((row, c["task"], r["provenance"]["budget"]), []).append(
-            r["provenance"]["wall_seconds"])
+        key = (row, c["task"], r["provenance"]["budget"])
+        out.setdefault(key, []).append(r["provenance"]["wall_seconds"])
+        n = interactions(r["config"])
+        if n:
+            out.setdefault(key + (n,), []).append(r["provenance"]["wall_seconds"])
     return out
 
 
@@ -138,17 +142,18 @@ def measured_rates(root=None) -> dict[tuple, list[float]]:
 
 def estimate(cell: _cells.Cell, costs: dict, budget_name: str,
              rates: dict | None = None) -> float | None:
-    """The median measured wall time of cells like this one (same row, task and budget); else,
-    with ``rates``, the median seconds per interaction of the same learner on the task times
-    this cell's interactions; else the same learner's and task's median wall time; or None
-    when none has run."""
-    v = costs.get((cell.row, cell.task, budget_name))
+    """The median measured wall time of cells like this one (same row, task and budget, and
+    for a cell that interacts the same interactions: a row of another study that ran 100,000
+    says little of one that runs 1.8M); else, with ``rates``, the median seconds per
+    interaction of the same learner on the task times this cell's interactions; else the
+    same learner's and task's median wall time; or None when none has run."""
     n = interactions(cell.config)
+    v = costs.get((cell.row, cell.task, budget_name) + ((n,) if n else ()))
     per = (rates or {}).get((cell.learner, cell.task, budget_name))
     if not v and per and n:
         return statistics.median(per) * n
     if not v:
-        v = [s for (row, task, b), w in costs.items() for s in w
+        v = [s for (row, task, b, *_), w in costs.items() if not _ for s in w
              if b == budget_name and task == cell.task and row.split("-")[0] == cell.learner]
     return statistics.median(v) if v else None
 

@@ -68,6 +68,27 @@ def check_config(cell, current: dict) -> None:
                               f"changed since the cell was listed; list the study again")
 
 
+def train_from_start(cell, cfg, demos, start, evaluate) -> dict:
+    """One RL cell's run from its seed's ``start`` (the competence and benchmark studies):
+    the learner's ``cfg`` for the cell's ``steps``, mean-action checkpoints
+    (``curve_points`` of ``curve_episodes`` episodes) and the start's and the final
+    policy's measures on ``eval_episodes`` episodes; ``evaluate(policy, n_episodes)``
+    scores a policy as the study does."""
+    import time
+    from dc_lesson import algorithms as _algorithms
+    from dc_lesson import evaluation as _evaluation
+    c = cell.config
+    t0 = time.perf_counter()
+    curve = _evaluation.CheckpointCurve(lambda p: evaluate(p, c["curve_episodes"]),
+                                        c["steps"], c["curve_points"])
+    result = _algorithms.get(cell.learner).train(cell.task, demos, cfg,
+                                                 policy=copy.deepcopy(start), progress=False,
+                                                 callback=curve)
+    return {"start": protocol.measures_of(evaluate(start, c["eval_episodes"])),
+            "final": protocol.measures_of(evaluate(result.policy, c["eval_episodes"])),
+            "curve": curve.points, "train_seconds": time.perf_counter() - t0}
+
+
 _STARTS: dict = {}   # this worker's BC starts, by the key their study gives
 _STARTS_KEPT = 8     # a few seeds' worth, oldest out
 

@@ -38,11 +38,9 @@ termination its expert trained with (``ppo.terminate``, :data:`TERMINATE`).
 
 from __future__ import annotations
 
-import copy
 import dataclasses
 import json
 import math
-import time
 
 import numpy as np
 
@@ -176,11 +174,18 @@ def _with(cfg, settings: dict):
 
 
 def learner_config(learner: str, b, part: str, seed: int, task: str | None = None):
-    """The learner's preset for the part's interactions, with two rules every RL learner
-    shares, which the grids adopt when they are run again: its start's exploration noise
-    (``algorithms.base.START_LOG_STD``, GAIL's tuned -2) and, on ``task``, the training-only
-    termination of ``TERMINATE``; then the learner's own :data:`FIXES`."""
-    sized = dataclasses.replace(b, il_steps=_steps(b, part))
+    """The learner's config in a cell of ``part``: :func:`gated_config` at the part's
+    interactions."""
+    return gated_config(learner, b, _steps(b, part), seed, task)
+
+
+def gated_config(learner: str, b, steps: int, seed: int, task: str | None = None):
+    """The learner's preset for ``steps`` interactions, with two rules every RL learner
+    shares, which the grids adopt when they are run again (``studies.benchmark``): its
+    start's exploration noise (``algorithms.base.START_LOG_STD``, GAIL's tuned -2) and, on
+    ``task``, the training-only termination of ``TERMINATE``; then the learner's own
+    :data:`FIXES`."""
+    sized = dataclasses.replace(b, il_steps=steps)
     cfg = dataclasses.replace(_algorithms.get(learner).preset(sized, seed),
                               start_log_std=_base.START_LOG_STD)
     cfg = _with(cfg, FIXES.get(learner, {}))
@@ -228,15 +233,7 @@ def run_cell(cell, needs):
     start = _im.cached_start(   # the seed's start, shared by the seven learners' cells
         (cell.task, cell.n_demos, "competence", cell.seed, c["start_epochs"], False),
         lambda: _bc.warm_start_policy(demos, cell.seed, max_epochs=c["start_epochs"]))
-    t0 = time.perf_counter()
-    curve = _evaluation.CheckpointCurve(lambda p: evaluate(p, c["curve_episodes"]),
-                                        c["steps"], c["curve_points"])
-    result = _algorithms.get(cell.learner).train(cell.task, demos, cfg,
-                                                 policy=copy.deepcopy(start), progress=False,
-                                                 callback=curve)
-    return {"start": protocol.measures_of(evaluate(start, c["eval_episodes"])),
-            "final": protocol.measures_of(evaluate(result.policy, c["eval_episodes"])),
-            "curve": curve.points, "train_seconds": time.perf_counter() - t0}, None
+    return _im.train_from_start(cell, cfg, demos, start, evaluate), None
 
 
 # -- the gate ----------------------------------------------------------------------------------

@@ -1,0 +1,104 @@
+"""The benchmark with headroom (issue 41): its demonstrations from the headroom study, its
+rows from the competence gate, its interactions from the competence curves, and cells whose
+learners share their seed's BC start."""
+
+import pytest
+
+from dc_lesson import budget
+from dc_lesson.algorithms import base
+from dc_lesson.experiments import competence as gate_report
+from dc_lesson.experiments.studies import benchmark as bm
+from dc_lesson.experiments.studies import headroom
+
+HEADROOM = {"benchmark": [
+    {"task": "cartpole", "protocol": "subsampled", "every": 20, "counts": [1, 25], "why": ""},
+    {"task": "hopper", "protocol": "subsampled", "every": 20, "counts": [11, 25], "why": ""},
+    {"task": "walker", "protocol": "full", "every": None, "counts": [11, 25], "why": ""},
+    {"task": "ant", "protocol": None, "every": None, "counts": [],
+     "why": "BC passes the band between two neighbouring counts"}]}
+GATE = {"gate": {"dc": {"passed": True, "reason": ""},
+                 "gail": {"passed": False, "reason": "keep on cartpole: a dip"},
+                 "dril": {"passed": None, "reason": "keep on hopper: 4 of 10 seeds"}}}
+
+
+def test_the_design_follows_the_headroom_choice_and_says_why_where_it_falls_back():
+    assert bm.design("hopper", HEADROOM) == {"task": "hopper", "protocol": "subsampled",
+                                             "every": 20, "counts": [11, 25], "why": ""}
+    assert bm.design("walker", HEADROOM)["every"] is None          # whole demonstrations
+    ant = bm.design("ant", HEADROOM)
+    assert ant["protocol"] == headroom.PREFERENCE[0] and ant["every"] == headroom.EVERY
+    assert ant["counts"] == list(bm.FALLBACK_COUNTS) and "neighbouring" in ant["why"]
+    assert bm.design("halfcheetah", HEADROOM)["counts"] == []       # no headroom row on record
+    human = bm.design("humanoid", HEADROOM)                         # the planner expert
+    assert human["counts"] == [] and "planner" in human["why"]
+
+
+def test_only_learners_that_passed_the_gate_are_rows_and_the_others_say_why():
+    said = bm.learners(GATE)
+    assert said["dc"] == "passed" and said["gail"].startswith("failed the competence gate")
+    assert "not decided" in said["dril"] and "no competence study" in said["pwil"]
+    assert bm.listed(GATE) == ("bc", "dc")
+    assert bm.listed({}) == ("bc",)
+
+
+@pytest.fixture
+def stored(monkeypatch):
+    records = {bm.HEADROOM: HEADROOM, bm.COMPETENCE: GATE}
+    monkeypatch.setattr(bm, "_stored", lambda name: records.get(name))
+    return records
+
+
+def test_the_grid_shares_each_seeds_start_and_runs_the_gates_settings(stored):
+    lesson = budget.get("lesson")
+    grid = [c for c in bm.cells_at(lesson) if c.learner != "expert"]
+    assert {c.learner for c in grid} == {"bc", "dc"}
+    assert {c.task for c in grid} == {"cartpole", "hopper", "walker", "ant"}
+    assert len(grid) == 4 * 2 * lesson.benchmark_seeds * 2
+    for c in grid:
+        twin = next(x for x in grid if (x.task, x.n_demos, x.seed, x.learner)
+                    == (c.task, c.n_demos, c.seed, "bc"))
+        assert c.config["bc"] == twin.config["bc"]                  # one start per seed
+        sub = c.config["subsample_every"]
+        assert c.config["bc"]["epochs"] == (headroom.EVERY if sub else 1) * lesson.bc_max_epochs
+        assert (c.config["bc"]["val_fraction"] == 0) == (c.n_demos == 1)
+        if c.learner == "dc":
+            cfg = c.config["dc"]
+            assert c.config["steps"] == lesson.benchmark_steps_for(c.task)
+            assert cfg["start_log_std"] == base.START_LOG_STD
+            assert (cfg["ppo"]["terminate"] == "hopper-fall") == (c.task == "hopper")
+    experts = {c.task for c in bm.cells_at(lesson) if c.learner == "expert"}
+    assert experts == {"cartpole", "hopper", "walker", "ant"}
+
+
+def test_benchmark_steps_follow_the_competence_curves():
+    """Lesson's interactions are the stored competence study's budgets: the latest plateau of
+    the gate-passing learners on each task it measures, the longest of those elsewhere."""
+    rec = gate_report.load()
+    if rec is None:
+        pytest.skip("no competence.json on this checkout")
+    lesson = budget.get("lesson")
+    measured = {r["task"]: r["flattens at"] for r in gate_report.budgets(rec)
+                if r["learner"] == "budget"}
+    assert None not in measured.values()
+    for task in bm.TASKS:
+        want = measured.get(task, max(measured.values()))
+        assert lesson.benchmark_steps_for(task) == want, task
+
+
+def test_a_learners_cell_starts_from_its_seeds_bc_row(stored, monkeypatch):
+    from dc_lesson import evaluation
+    smoke = budget.get("smoke")
+    real = evaluation.evaluate_policy
+
+    def scaled_only(task, policy, reference, **kw):   # no fresh reference in a unit test
+        return real(task, policy, None, **{**kw, "divergences": False})
+
+    monkeypatch.setattr(bm._evaluation, "evaluate_policy", scaled_only)
+    monkeypatch.setattr(bm._common, "reference", lambda needs: None)
+    grid = [c for c in bm.cells_at(smoke) if c.task == "cartpole" and c.n_demos == 1]
+    bc_cell = next(c for c in grid if c.learner == "bc")
+    dc_cell = next(c for c in grid if c.learner == "dc")
+    bc_out, _ = bm.run_cell(bc_cell, ())
+    dc_out, _ = bm.run_cell(dc_cell, ())
+    assert dc_out["start"] == bc_out["final"]          # the very policy the BC row scores
+    assert len(dc_out["curve"]) == smoke.benchmark_curve_points
