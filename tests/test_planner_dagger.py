@@ -41,6 +41,19 @@ def test_a_resumed_run_ends_as_an_uninterrupted_one_and_other_labels_are_refused
         pd.train("humanoid", dataclasses.replace(TINY, epochs=3), directory=b, progress=None)
 
 
+def test_the_record_reads_a_finished_run_and_an_unfinished_one(tmp_path, monkeypatch):
+    monkeypatch.setitem(pd.RECIPES, "humanoid", TINY)
+    assert pd.record("humanoid", tmp_path) is None
+    pd.train("humanoid", TINY, hours=0, directory=tmp_path, progress=None)
+    part = pd.record("humanoid", tmp_path)
+    assert not part["done"] and part["student_return"] is None and len(part["rounds"]) == 1
+    pd.train("humanoid", TINY, directory=tmp_path, progress=None)
+    whole = pd.record("humanoid", tmp_path)
+    assert whole["done"] and whole["student_return"]["n_episodes"] == TINY.eval_episodes
+    assert [r["beta"] for r in whole["rounds"]] == [1.0, TINY.beta]
+    assert [r["rolled_out_by"] for r in whole["rounds"]] == ["planner", "mixture"]
+
+
 def test_the_planner_acts_with_probability_beta_and_labels_every_state():
     class Fake:   # a planner whose action is 1 everywhere
         def __call__(self, obs):

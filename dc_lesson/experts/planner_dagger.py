@@ -209,4 +209,30 @@ def train(task: str, config: DaggerConfig | None = None, *, hours: float | None 
     return {"done": True, "log": log, **meta}
 
 
-__all__ = ["DaggerConfig", "Labeller", "RECIPES", "paths", "train"]
+def record(task: str, directory=None) -> dict | None:
+    """What is on record of ``task``'s DAgger: ``{"done", "rounds", "student_return",
+    "config"}`` from the finished run's ``.json`` (``student_return`` over full episodes),
+    else from the stored labels of an unfinished run (``student_return`` None); None when
+    neither exists.  For chapter 00's curve.  The humanoid's first rows were written before
+    the log named the mixture (round 1 says "student" and has no ``beta``): every round after
+    the first is read as what it was, the mixture at ``beta ** round``."""
+    p = paths(task, directory)
+    config = RECIPES[task]
+    if p["meta"].exists():
+        meta = _storage.read_json(p["meta"], "DAgger record")
+        out = {"done": True, "rounds": meta["rounds"], "config": meta["config"],
+               "student_return": meta["student_return"]}
+    elif p["labels"].exists():
+        _, _, log = _load(task, config, directory)
+        out = {"done": False, "rounds": log, "config": dataclasses.asdict(config),
+               "student_return": None}
+    else:
+        return None
+    beta = out["config"]["beta"]
+    out["rounds"] = [{**r, "rolled_out_by": "planner" if r["round"] == 0 else "mixture",
+                      "beta": 1.0 if r["round"] == 0 else beta ** r["round"]}
+                     for r in out["rounds"]]
+    return out
+
+
+__all__ = ["DaggerConfig", "Labeller", "RECIPES", "paths", "record", "train"]
