@@ -102,3 +102,38 @@ def test_a_learners_cell_starts_from_its_seeds_bc_row(stored, monkeypatch):
     dc_out, _ = bm.run_cell(dc_cell, ())
     assert dc_out["start"] == bc_out["final"]          # the very policy the BC row scores
     assert len(dc_out["curve"]) == smoke.benchmark_curve_points
+
+
+def test_the_ablations_start_where_the_benchmarks_hopper_row_starts_and_control_the_budget(
+        stored):
+    from dc_lesson.experiments.studies import ablations
+    lesson = budget.get("lesson")
+    grid = [c for c in ablations.cells_at(lesson) if c.learner != "expert"]
+    bench = {(c.seed, c.learner): c for c in bm.cells_at(lesson)
+             if c.task == "hopper" and c.n_demos == 11}
+    assert {c.n_demos for c in grid} == {11}
+    for c in grid:
+        assert c.config["bc"] == bench[(c.seed, "bc")].config["bc"]   # the very start
+    steps = {c.variant: c.config["steps"] for c in grid if c.seed == 0}
+    assert steps["loops=1-long"] == steps["loops=4"] == 4 * steps["loops=1"]
+    assert steps["loops=4"] <= lesson.benchmark_steps_for("hopper")
+    default = next(c for c in grid if c.seed == 0 and c.variant == "")
+    assert default.config["dc"] == bench[(0, "dc")].config["dc"]         # the benchmark's DC
+    lrs = sorted(v for v in steps if v.startswith("lr="))
+    assert len(lrs) == len(lesson.lr_sweep_lrs) - 1 and "lr=0.0003" not in lrs
+
+
+def test_an_ablation_cell_keeps_dcs_iteration_log(stored, monkeypatch):
+    from dc_lesson import evaluation
+    from dc_lesson.experiments.studies import ablations
+    real = evaluation.evaluate_policy
+    monkeypatch.setattr(bm._evaluation, "evaluate_policy",
+                        lambda task, policy, reference, **kw: real(
+                            task, policy, None, **{**kw, "divergences": False}))
+    monkeypatch.setattr(ablations._common, "reference", lambda needs: None)
+    cell = next(c for c in ablations.cells_at(budget.get("smoke"))
+                if c.variant == "update=admm")
+    out, _ = ablations.run_cell(cell, ())
+    assert len(out["log"]["pi_pi_prime_l1"]) == cell.config["dc"]["loops"] * \
+        cell.config["dc"]["iterations"]
+    assert out["log"]["primal_residual"][-1] is not None                # ADMM's residuals

@@ -68,12 +68,13 @@ def check_config(cell, current: dict) -> None:
                               f"changed since the cell was listed; list the study again")
 
 
-def train_from_start(cell, cfg, demos, start, evaluate) -> dict:
-    """One RL cell's run from its seed's ``start`` (the competence and benchmark studies):
-    the learner's ``cfg`` for the cell's ``steps``, mean-action checkpoints
+def train_from_start(cell, cfg, demos, start, evaluate, log=None) -> dict:
+    """One RL cell's run from its seed's ``start`` (the competence, benchmark and ablations
+    studies): the learner's ``cfg`` for the cell's ``steps``, mean-action checkpoints
     (``curve_points`` of ``curve_episodes`` episodes) and the start's and the final
     policy's measures on ``eval_episodes`` episodes; ``evaluate(policy, n_episodes)``
-    scores a policy as the study does."""
+    scores a policy as the study does; ``log``: a function of the learner's training log
+    whose value the result keeps as ``log``."""
     import time
     from dc_lesson import algorithms as _algorithms
     from dc_lesson import evaluation as _evaluation
@@ -86,7 +87,8 @@ def train_from_start(cell, cfg, demos, start, evaluate) -> dict:
                                                  callback=curve)
     return {"start": protocol.measures_of(evaluate(start, c["eval_episodes"])),
             "final": protocol.measures_of(evaluate(result.policy, c["eval_episodes"])),
-            "curve": curve.points, "train_seconds": time.perf_counter() - t0}
+            "curve": curve.points, "train_seconds": time.perf_counter() - t0,
+            **({} if log is None else {"log": log(result.log)})}
 
 
 _STARTS: dict = {}   # this worker's BC starts, by the key their study gives

@@ -172,45 +172,65 @@ def start_policy(task: str, n_demos: int, every: int | None, seed: int, settings
     return policy
 
 
+def cached_start(cell, c: dict):
+    """The seed's BC start of ``cell`` (config ``c``), trained once per worker for every
+    cell of that (task, count, protocol, seed): this study's and the ablations'."""
+    return _im.cached_start(
+        (NAME, cell.task, cell.n_demos, c["subsample_every"], cell.seed,
+         json.dumps(c["bc"], sort_keys=True)),
+        lambda: start_policy(cell.task, cell.n_demos, c["subsample_every"], cell.seed,
+                             c["bc"]))
+
+
+def evaluator(cell, c: dict, reference):
+    """``evaluate(policy, n_episodes)``: the mean action on the cell's fresh episodes,
+    scaled return and divergences against ``reference``."""
+    def evaluate(policy, n_episodes):
+        return _evaluation.evaluate_policy(cell.task, policy, reference,
+                                           n_episodes=n_episodes, seed=c["eval_seed"],
+                                           divergences=True)
+    return evaluate
+
+
 def run_cell(cell, needs):
     c = cell.config
     b = _budget.get(c["budget"])
     if bc_settings(cell.n_demos, c["subsample_every"], b) != c["bc"]:
         raise cells.CellError(f"{cell.name}: BCConfig's defaults changed since the cell was "
                               f"listed; list the study again")
-    reference = _common.reference(needs)
-    demos = demonstrations(cell.task, cell.n_demos, c["subsample_every"], cell.seed)
-
-    def evaluate(policy, n_episodes):
-        return _evaluation.evaluate_policy(cell.task, policy, reference,
-                                           n_episodes=n_episodes, seed=c["eval_seed"],
-                                           divergences=True)
-
+    evaluate = evaluator(cell, c, _common.reference(needs))
     t0 = time.perf_counter()
-    start = _im.cached_start(
-        (NAME, cell.task, cell.n_demos, c["subsample_every"], cell.seed,
-         json.dumps(c["bc"], sort_keys=True)),
-        lambda: start_policy(cell.task, cell.n_demos, c["subsample_every"], cell.seed,
-                             c["bc"]))
+    start = cached_start(cell, c)
     if cell.learner == "bc":
         return {"final": protocol.measures_of(evaluate(start, c["eval_episodes"])),
                 "train_seconds": time.perf_counter() - t0}, None
     cfg = learner_config(cell.learner, b, cell.task, cell.seed)
     _im.check_config(cell, json.loads(cfg.to_json()))
+    demos = demonstrations(cell.task, cell.n_demos, c["subsample_every"], cell.seed)
     return _im.train_from_start(cell, cfg, demos, start, evaluate), None
+
+
+def observations(records) -> list[dict]:
+    """One observation per cell (this study's and the ablations'): the final policy's
+    measures, with the start's, the checkpoint curve and (DC's ablations) the iteration log
+    beside them; the expert row's at ``n_demos`` 0."""
+    from dc_lesson.experiments import aggregate as _agg
+    out = []
+    for r in records:
+        res = r["result"]
+        if "measures" in res:   # the expert row
+            out.append({**_agg.observation(r, res["measures"]), "n_demos": 0})
+        else:
+            out.append(_agg.observation(r, res["final"], curve=res.get("curve"),
+                                        start=res.get("start"),
+                                        **({"log": res["log"]} if "log" in res else {})))
+    return out
 
 
 def aggregate(records, b) -> dict:
     from dc_lesson.experiments import aggregate as _agg
     from dc_lesson.experiments import competence as _gate
-    obs = []
-    for r in records:
-        res = r["result"]
-        if "measures" in res:   # the expert row
-            obs.append({**_agg.observation(r, res["measures"]), "n_demos": 0})
-        else:
-            obs.append(_agg.observation(r, res["final"], curve=res.get("curve"),
-                                        start=res.get("start")))
+    obs = observations(records)
     rows = [o for o in obs if o["row"] != "expert"]
     expert = [o for o in obs if o["row"] == "expert"]
     grid = listed()
@@ -228,6 +248,6 @@ STUDY = cells.Study(NAME, "the benchmark with headroom (issue 41): Table III, Fi
                     run_cell=lambda c, n: _common.run_expert_or(c, n, run_cell),
                     aggregate=aggregate, result_file="benchmark.json")
 
-__all__ = ["FALLBACK_COUNTS", "NAME", "RL", "STUDY", "TASKS", "bc_settings", "cells_at",
-           "demonstrations", "design", "learner_config", "learners", "listed", "run_cell",
+__all__ = ["FALLBACK_COUNTS", "NAME", "RL", "STUDY", "TASKS", "bc_settings", "cached_start",
+           "cells_at", "demonstrations", "design", "evaluator", "observations", "learner_config", "learners", "listed", "run_cell",
            "start_policy"]
