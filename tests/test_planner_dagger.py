@@ -52,6 +52,7 @@ def test_the_record_reads_a_finished_run_and_an_unfinished_one(tmp_path, monkeyp
     assert whole["done"] and whole["student_return"]["n_episodes"] == TINY.eval_episodes
     assert [r["beta"] for r in whole["rounds"]] == [1.0, TINY.beta]
     assert [r["rolled_out_by"] for r in whole["rounds"]] == ["planner", "mixture"]
+    assert whole["label_variance"] > 0
 
 
 def test_the_planner_acts_with_probability_beta_and_labels_every_state():

@@ -211,7 +211,8 @@ def train(task: str, config: DaggerConfig | None = None, *, hours: float | None 
 
 def record(task: str, directory=None) -> dict | None:
     """What is on record of ``task``'s DAgger: ``{"done", "rounds", "student_return",
-    "config"}`` from the finished run's ``.json`` (``student_return`` over full episodes),
+    "config", "label_variance"}`` (the last: the labels' variance per action dimension,
+    averaged, beside which a round's ``mse`` reads) from the finished run's ``.json`` (``student_return`` over full episodes),
     else from the stored labels of an unfinished run (``student_return`` None); None when
     neither exists.  For chapter 00's curve.  The humanoid's first rows were written before
     the log named the mixture (round 1 says "student" and has no ``beta``): every round after
@@ -228,6 +229,9 @@ def record(task: str, directory=None) -> dict | None:
                "student_return": None}
     else:
         return None
+    if p["labels"].exists():   # how much of the labels a function of the state could fit
+        _, ys, _ = _load(task, RECIPES[task], directory)
+        out["label_variance"] = float(np.concatenate(ys).var(axis=0).mean())
     beta = out["config"]["beta"]
     out["rounds"] = [{**r, "rolled_out_by": "planner" if r["round"] == 0 else "mixture",
                       "beta": 1.0 if r["round"] == 0 else beta ** r["round"]}
