@@ -237,6 +237,52 @@ else:
 # not yet its results: the table below still shows the grid run on whole demonstrations.
 
 # %% [markdown]
+# ## The next grid: the benchmark with headroom
+#
+# The grid is run again once, on its final design (`dc-lesson sweep benchmark`, module
+# `dc_lesson.experiments.studies.benchmark`, aggregate `benchmark.json`):
+#
+# * **demonstrations**: per task, the protocol and counts the rule above chose; where it
+#   found none but the expert is a network (ant), the subsampled protocol at the counts most
+#   tasks use, 11 and 25; no humanoid row (its expert is still the planner, chapter 0);
+# * **rows**: BC (the common start: every learner of a seed starts from that seed's BC row)
+#   and every RL learner that passed the competence gate of chapter 5, run with the gate's
+#   settings; a learner that failed is not run, and the list below says why;
+# * **interactions**: per task, where the gate-passing learners' learning curves flattened
+#   in the competence study (hopper and halfcheetah, the tasks it measures); every other task
+#   takes the longest of those, having no curve of its own;
+# * **seeds**: 5, the fewest the verdict rule accepts; the expert row beside every task.
+#
+# The hopper ablations (Figures 3-6) run again on the benchmark's hopper start (`dc-lesson
+# sweep ablations`): a start with headroom, so that a loop can show what it adds instead of
+# what it takes away from a start already at the expert.
+
+# %%
+from dc_lesson import budget as _budget_mod
+from dc_lesson.experiments import sweep as _sweep
+from dc_lesson.experiments.competence import NAMES as _gate_names
+from dc_lesson.experiments.studies import ablations as _ablations, benchmark as _bench
+
+_lesson = _budget_mod.get("lesson")
+display(pd.DataFrame([{
+    "task": d["task"], "protocol": d["protocol"] or "not run",
+    "demonstrations": ", ".join(map(str, d["counts"])) or "-",
+    "interactions": f"{_lesson.benchmark_steps_for(d['task']):,}" if d["counts"] else "-",
+    "why": d["why"]} for d in (_bench.design(t) for t in _bench.TASKS)]).set_index("task"))
+display(Markdown("\n".join(
+    ["* **BC**: the start of every row, and a row of its own"]
+    + [f"* **{_gate_names.get(k, k)}**: " + ("a row" if v == "passed" else f"not run: {v}")
+       for k, v in _bench.learners().items()])))
+_cost = []
+for _study in (_bench.STUDY, _ablations.STUDY):
+    _p = _sweep.plan(_study, _lesson)
+    _cost.append(f"`{_study.name}`: {len(_p['grid'])} cells, {len(_p['todo'])} still to run, "
+                 f"about {_p['cpu_seconds'] / 3600:.1f} CPU-hours left"
+                 + (f" (and {_p['unknown']} cells never measured)" if _p["unknown"] else ""))
+display(Markdown("The grids at the lesson budget, priced by the cells measured so far "
+                 "(`dc-lesson sweep benchmark --dry-run`): " + "; ".join(_cost) + "."))
+
+# %% [markdown]
 # ## Table III and Figure 9
 
 # %%
