@@ -340,10 +340,12 @@ else:
 # BC / GAIL EMDs (1.01 / 0.84 on Reacher2, 0.81 / 0.41 on Reacher4, 1.81 / 1.75 on
 # HalfCheetah2) come from other tasks' units and another estimator: compare the order of the
 # rows, not the values. "Mode TV" is the total-variation distance of a seed's mode shares
-# from the reference's, and a seed has *collapsed* when one mode takes
-# `claims.COLLAPSE_SHARE` of its episodes. An episode's mode is where it arrives and stays
-# (the target, or the running direction at speed); one that arrives nowhere counts as "none",
-# never as the nearest mode.
+# from the reference's, and a seed has *collapsed* when at most 1 - `claims.COLLAPSE_SHARE`
+# of its episodes reach a mode other than its largest (`claims.collapsed`). An episode's mode
+# is where it arrives and stays (the target, or the running direction at speed); one that
+# arrives nowhere counts as "none", never as the nearest mode, and reaches no second mode: a
+# seed whose episodes mostly arrive nowhere counts as collapsed too, and the share arriving
+# nowhere beside it says which of the two it is.
 #
 # Which mode each evaluation episode took, per seed (mean action):
 

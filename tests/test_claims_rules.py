@@ -105,17 +105,27 @@ def test_the_stored_results_give_a_verdict_per_claim_in_the_one_vocabulary():
         assert "-0.000 " not in v.evidence
 
 
-def test_arriving_nowhere_is_not_collapsing_onto_a_mode():
+def test_arriving_nowhere_is_no_mode_but_counts_in_the_collapse_test():
     """'none' (an episode that never arrives) is not a mode: a policy that goes nowhere has a
-    largest-mode share of 0, not 1, and the collapse rule does not count it."""
+    largest-mode share of 0, not 1; but it reaches no second mode either, so the collapse
+    test (the share beyond the largest mode, issue 41) counts it, where the largest share
+    alone called a seed arriving nowhere in 78% of its episodes uncollapsed."""
     nowhere = {"mode_shares": {"red": 0.0, "blue": 0.0, "none": 1.0}}
+    mostly_nowhere = {"mode_shares": {"red": 0.22, "blue": 0.0, "none": 0.78}}
     one = {"mode_shares": {"red": 0.9, "blue": 0.05, "none": 0.05}}
+    even = {"mode_shares": {"red": 0.5, "blue": 0.5, "none": 0.0}}
     assert claims.largest_share(nowhere) == 0.0 and claims.largest_share(one) == 0.9
+    assert [claims.beyond_largest(o) for o in (nowhere, mostly_nowhere, even)] == [0, 0, 0.5]
+    assert claims.beyond_largest(one) == pytest.approx(0.05)
+    assert [claims.collapsed(o) for o in (nowhere, mostly_nowhere, one, even)] == \
+        [True, True, True, False]
+    assert claims.collapsed({"mode_shares": {}}) is None
     from dc_lesson.experiments.studies import _imitation
     obs = [{"row": "gail", "task": "t", "n_demos": 18, "seed": s, **m}
-           for s, m in enumerate((nowhere, one))]
+           for s, m in enumerate((nowhere, one, even))]
     (summary,) = _imitation.mode_summary(obs, {"t": {"red": 0.5, "blue": 0.5, "none": 0.0}}, 50)
-    assert summary["largest_share"] == [0.0, 0.9] and summary["collapsed_share"] == 0.5
+    assert summary["largest_share"] == [0.0, 0.9, 0.5]
+    assert summary["collapsed_share"] == pytest.approx(2 / 3)
 
 
 @pytest.mark.parametrize("delta, want", [(0.0, "equal within 0.05"), (-0.5, "contradicted"),

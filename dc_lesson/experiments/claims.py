@@ -7,9 +7,9 @@ of interest, Holm across a claim's tasks, "not judged" with its reason).  The st
 judge them on their aggregates: Table I's four here (:func:`verdicts`), the hopper ablations'
 in :mod:`ablations`, Table III's in :mod:`table_three`, chapter 1's growth in
 :func:`bc_growth`.  Mode claims are per seed: the primary measure is per-seed (largest-mode
-share, or the total-variation distance of the seed's mode shares from the reference's), paired
-with the same seed's BC start, and the evidence gives the share of seeds collapsed (largest
-share at least ``COLLAPSE_SHARE``) beside the start's and the multinomial floor of TV for that
+share beyond the largest mode, or the total-variation distance of the seed's mode shares from
+the reference's), paired with the same seed's BC start, and the evidence gives the share of
+seeds collapsed (:func:`collapsed`) beside the start's and the multinomial floor of TV for that
 many episodes.  ``tests/test_claims_rules.py`` checks the rules on constructed records.
 """
 
@@ -26,7 +26,8 @@ from dc_lesson.experiments.verdicts import (CEILING, FLOOR, MIN_SEEDS, WORDS, Cl
 from dc_lesson.storage import read_result
 
 MEASURES = ("emd", "kl", "rkl")
-COLLAPSE_SHARE = 0.8    # a policy with at least this share of episodes in one mode collapsed
+COLLAPSE_SHARE = 0.8    # a seed with at most 1 - this share of its episodes at a mode other
+# than its largest collapsed (episodes arriving nowhere count as reaching no other mode)
 
 
 # -- Table I (chapter 04): the multi-mode claims ---------------------------------------------------
@@ -44,9 +45,13 @@ HIGHER_RETURN = Claim(
     "GAIL is the paper's point (BC is DC's start, DC - BC is given beside it)")
 GAIL_COLLAPSES = Claim(
     "GAIL collapses onto one mode of the expert's behaviour", "Figures 1, 7, 10",
-    "largest_share", "gail", "bc", +1,
-    "collapse is a per-seed event: the share of the seed's episodes in its largest mode, "
-    "against the same seed's BC start (which may have collapsed already)")
+    "beyond_largest", "gail", "bc", -1,
+    "collapse is a per-seed event: the share of the seed's episodes that reach a mode other "
+    "than its largest (episodes arriving nowhere reach none), against the same seed's BC "
+    "start (which may have collapsed already). Until issue 41 the measure was the largest "
+    "mode's share, which a seed arriving nowhere in most episodes kept low: the hidden-coin "
+    "GAIL's 'no collapse' was 78% of its episodes arriving nowhere; changed after those "
+    "numbers were read, and said")
 DC_KEEPS_MODES = Claim(
     "DC preserves all of the expert's modes", "Figures 1, 7, 10", "mode_tv", "dc", "bc", -1,
     "total-variation distance of the seed's mode shares from the reference's: zero when DC "
@@ -172,6 +177,22 @@ def largest_share(o) -> float | None:
     return max(shares.values()) if shares else None
 
 
+def beyond_largest(o) -> float | None:
+    """The share of episodes that arrive at a mode other than the seed's largest: 0 for a seed
+    on one mode and for a seed that arrives nowhere ("none" reaches no mode), 1/2 for an even
+    two-mode mix; the collapse measure (:data:`GAIL_COLLAPSES`).  None without mode shares."""
+    shares = {k: v for k, v in (o.get("mode_shares") or {}).items() if k != "none"}
+    return float(sum(shares.values()) - max(shares.values())) if shares else None
+
+
+def collapsed(o) -> bool | None:
+    """Whether a seed collapsed: at most ``1 - COLLAPSE_SHARE`` of its episodes reach a mode
+    other than its largest (so a seed arriving nowhere in most episodes counts: it covers no
+    second mode either; the arrival rate beside it says which of the two it is)."""
+    b = beyond_largest(o)
+    return None if b is None else bool(b <= 1 - COLLAPSE_SHARE + 1e-12)
+
+
 def mode_tv(reference_shares: dict):
     def f(o):
         ref = reference_shares.get(o["task"])
@@ -207,11 +228,10 @@ def _mode_evidence(obs, task_rows, reference_shares, n_episodes: int) -> str:
     for task in dict.fromkeys(o["task"] for o in obs if o.get("mode_shares")):
         bits = []
         for row in task_rows:
-            top = [largest_share(o) for o in obs if o["task"] == task and o["row"] == row
+            top = [collapsed(o) for o in obs if o["task"] == task and o["row"] == row
                    and o.get("mode_shares")]
             if top:
-                bits.append(f"{row} collapsed in {sum(t >= COLLAPSE_SHARE for t in top)} of "
-                            f"{len(top)} seeds")
+                bits.append(f"{row} collapsed in {sum(top)} of {len(top)} seeds")
         ref = reference_shares.get(task)
         if ref:
             floor = stats.multinomial_tv_floor(ref, n_episodes)
@@ -248,7 +268,7 @@ def hidden_coin_collapse(t1: dict, competence: dict | str | None = "stored") -> 
     if not any(o["row"] == "gail-coin" for o in coin):
         return None
     return judge_claim(dataclasses.replace(GAIL_COLLAPSES, a="gail-coin", b="bc-coin"), coin,
-                       measure=largest_share, competence=competence_of(competence, t1))
+                       measure=beyond_largest, competence=competence_of(competence, t1))
 
 
 def floors(rec: dict | None, actions: str = "mean") -> dict:
@@ -284,7 +304,7 @@ def verdicts(obs=None, reference_shares=None, source: str = "", eval_episodes: i
                            obs, multi, **kw)
         out.append(dataclasses.replace(v, evidence=v.evidence + "; beside it: " +
                                        side.evidence))
-    for claim, measure, rows in ((GAIL_COLLAPSES, largest_share, ("bc", "gail")),
+    for claim, measure, rows in ((GAIL_COLLAPSES, beyond_largest, ("bc", "gail")),
                                  (DC_KEEPS_MODES, mode_tv(reference_shares), ("bc", "dc"))):
         v = judge_claim(claim, obs, multi, measure=measure, note=source, **kw)
         ev = _mode_evidence(obs, rows, reference_shares, eval_episodes)
@@ -297,5 +317,5 @@ __all__ = ["ABLATIONS", "BC_GROWS", "BC_IMPROVES", "CLAIMS", "COLLAPSE_SHARE", "
            "DC_KEEPS_MODES", "DC_STABLE", "EQUAL_BUDGET", "FASTER", "GAIL_COLLAPSES", "GAIL_LR_START",
            "GPRIL_LOWEST", "HIGHER_RETURN", "LONG_LOOP", "LOOPS", "LOWEST_DIVERGENCE",
            "LR_ROBUST", "MIN_SEEDS", "STABLE", "TABLE_ONE", "TABLE_THREE", "WORDS", "Claim",
-           "Verdict", "bc_growth", "count", "floors", "hidden_coin_collapse", "judge_claim",
-           "largest_share", "mode_tv", "paired_values", "table1_observations", "verdicts"]
+           "Verdict", "beyond_largest", "bc_growth", "collapsed", "count", "floors",
+           "hidden_coin_collapse", "judge_claim", "largest_share", "mode_tv", "paired_values", "table1_observations", "verdicts"]

@@ -14,6 +14,7 @@ INF = float("inf")
 # The scaled return is unbounded (a learner can do worse than random or better than the
 # expert), and so are the KL and RKL *estimates* (the expert-vs-expert KL can be below zero).
 BOUNDS = {"mode_tv": (0.0, 1.0), "tv": (0.0, 1.0), "largest_share": (0.0, 1.0),
+          "beyond_largest": (0.0, 1.0),
           "collapsed_share": (0.0, 1.0), "share": (0.0, 1.0), "probability": (0.0, 1.0),
           "emd": (0.0, INF), "late_spread": (0.0, INF), "curve_spread": (0.0, INF)}
 

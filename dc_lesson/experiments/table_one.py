@@ -449,7 +449,7 @@ def final_logs(rec: dict, row: str) -> list[dict]:
 
 def against_start(rec: dict, row: str, start: str, actions: str = "mean") -> list[str]:
     """One rendered Markdown line per task on which ``row`` has run: how many seeds of it and
-    of its ``start`` collapsed (``claims.largest_share`` at least ``COLLAPSE_SHARE``), the
+    of its ``start`` collapsed (``claims.collapsed``: arriving nowhere counts), the
     share of episodes arriving at no mode, ``row - start`` paired on EMD and on scaled return
     with the control word, in how many seeds ``row`` ended below its own start, and the
     spread of its scaled return over seeds."""
@@ -461,8 +461,7 @@ def against_start(rec: dict, row: str, start: str, actions: str = "mean") -> lis
         seeds = sorted(set(a) & set(b))
         if not seeds:
             continue
-        top = lambda rows: sum((claims.largest_share(rows[s]) or 0) >= claims.COLLAPSE_SHARE
-                               for s in seeds)
+        top = lambda rows: sum(bool(claims.collapsed(rows[s])) for s in seeds)
         none = lambda rows: statistics.mean((rows[s].get("mode_shares") or {}).get("none", 0)
                                             for s in seeds)
         ret = [a[s]["scaled_return"] for s in seeds]

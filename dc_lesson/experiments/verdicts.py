@@ -51,7 +51,7 @@ LEVEL_GAP = 0.05        # a start within this of the expert's 1 or random's 0 le
 # The smallest effect of interest per measure (absolute, on the measure's own axis).
 SMALLEST = {"scaled_return": 0.05, "early_return": 0.05, "worst_lr_return": 0.05,
             "curve_mean": 0.05, "late_spread": 0.05, "curve_spread": 0.05,
-            "mode_tv": 0.05, "largest_share": 0.05,            # shares of episodes
+            "mode_tv": 0.05, "largest_share": 0.05, "beyond_largest": 0.05,            # shares of episodes
             "log_gap_ratio": 0.1, "log_change_ratio": 0.1}     # log ratios: a 10% change
 DIVERGENCES = ("emd", "kl", "rkl")      # bound: the expert-vs-expert floor on the task
 FALLBACK = 0.05                         # a divergence whose floor is unknown
@@ -474,6 +474,7 @@ UNITS = {"scaled_return": "scaled return (random 0, expert 1)",
          "curve_spread": "std of the checkpoints' scaled return over the second half",
          "mode_tv": "share of episodes (total variation of the mode shares)",
          "largest_share": "share of episodes in the largest mode",
+         "beyond_largest": "share of episodes beyond the largest mode",
          "log_gap_ratio": "log ratio (0.1: a change of about 10%)",
          "log_change_ratio": "log ratio (0.1: a change of about 10%)"}
 

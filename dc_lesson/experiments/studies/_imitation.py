@@ -155,9 +155,9 @@ def observations(records, start_row: str = "bc") -> list[dict]:
 
 def mode_summary(obs: list[dict], reference_shares: dict, eval_episodes: int) -> list[dict]:
     """Per (row, task): per seed the largest mode's share (episodes that arrive nowhere are no
-    mode) and the TV distance of the seed's
-    mode shares from the reference's; the share of seeds collapsed (largest share at least
-    COLLAPSE_SHARE); and the multinomial floor of TV for ``eval_episodes`` episodes."""
+    mode), the share beyond it (``claims.beyond_largest``) and the TV distance of the seed's
+    mode shares from the reference's; the share of seeds collapsed (``claims.collapsed``: at
+    most 1 - COLLAPSE_SHARE beyond the largest mode, arriving nowhere included); and the multinomial floor of TV for ``eval_episodes`` episodes."""
     out = []
     for (row, task, _), rows in _agg._groups(obs).items():
         shares = [o["mode_shares"] for o in sorted(rows, key=lambda o: o["seed"])
@@ -166,11 +166,12 @@ def mode_summary(obs: list[dict], reference_shares: dict, eval_episodes: int) ->
         if not shares or not ref:
             continue
         top = [max(v for k, v in s.items() if k != "none") for s in shares]   # "none": no mode
+        beyond = [sum(v for k, v in s.items() if k != "none") - t for s, t in zip(shares, top)]
         tvs = [stats.tv(ref, s) for s in shares]
         floor = stats.multinomial_tv_floor(ref, eval_episodes)
         out.append({"row": row, "task": task, "n_seeds": len(shares),
-                    "largest_share": top, "collapsed_share": float(
-                        sum(t >= COLLAPSE_SHARE for t in top) / len(top)),
+                    "largest_share": top, "beyond_largest": beyond, "collapsed_share": float(
+                        sum(b <= 1 - COLLAPSE_SHARE + 1e-12 for b in beyond) / len(beyond)),
                     "tv": tvs, "tv_ci": stats.mean_ci(tvs).to_dict(),
                     "tv_floor": floor, "above_floor": float(
                         sum(t > floor["quantile"] for t in tvs) / len(tvs)),
