@@ -208,6 +208,25 @@ def test_added_rows_join_a_stored_file_only_under_the_same_settings():
     assert third["seeds"] == [0, 1, 3, 4] and third["revisions"] == ["r1", "r2", "r3"]
     with pytest.raises(ValueError, match="'steps' is 20 here and 10"):
         ig.merged(old, {**new, "steps": 20}, "b")
+    # a file merged by hand keeps its revisions per seed set: read as their values
+    by_hand = {**old, "revisions": {"[1]": "r0", "[0]": "r1"}}
+    assert ig.merged(by_hand, new, "b")["revisions"] == ["r0", "r1", "r2"]
+
+
+def test_rows_that_cannot_be_added_are_kept_beside_the_file(tmp_path, monkeypatch, capsys):
+    import json
+    out = tmp_path / "r.json"
+    out.write_text(json.dumps({"task": "hopper", "part": "learn", "steps": 10, "rows": [],
+                               "command": "a"}))
+    monkeypatch.setattr(ig, "ready", lambda *a, **k: None)
+    monkeypatch.setattr(ig, "run", lambda *a, **k: {"task": "hopper", "part": "learn",
+                                                     "steps": 20, "rows": []})
+    with pytest.raises(SystemExit):
+        ig.main(["--task", "hopper", "--part", "learn", "--seeds", "3", "--out", str(out),
+                 "--add"])
+    side = ig.side_path(out, [3])
+    assert "'steps' is 20 here and 10" in capsys.readouterr().err
+    assert side.exists() and json.loads(side.read_text())["steps"] == 20
 
 
 def test_add_refuses_another_part_before_any_compute(tmp_path, monkeypatch, capsys):

@@ -486,8 +486,22 @@ def merged(old: dict, new: dict, new_command: str) -> dict:
     rows.update({r["seed"]: r for r in new["rows"]})
     return {**new, "rows": [rows[s] for s in sorted(rows)],
             "command": f"{old['command']} ; then {new_command}",
-            "seeds": sorted(rows), "revisions": sorted(set(
-                old.get("revisions", [old.get("revision")]) + [new.get("revision")]))}
+            "seeds": sorted(rows),
+            "revisions": sorted(set(_revisions(old)) | {new.get("revision")} - {None})}
+
+
+def _revisions(rec: dict) -> list[str]:
+    """The revisions a stored file's rows ran at: its ``revisions`` (a list, or a mapping of
+    seeds to revision as an early hand-merged file has it), else its ``revision``."""
+    r = rec.get("revisions", [rec.get("revision")])
+    return [x for x in (r.values() if isinstance(r, dict) else r) if x is not None]
+
+
+def side_path(out, seeds) -> Path:
+    """Where a run's own result goes when it cannot be added to ``out``: beside it, named by
+    its seeds, so that no computed row is lost."""
+    out = Path(out)
+    return out.with_name(f"{out.stem}.seeds-{'-'.join(map(str, seeds))}{out.suffix}")
 
 
 def main(argv=None) -> dict:
@@ -541,7 +555,12 @@ def main(argv=None) -> dict:
         payload, seeds = {"benchmark": "imitation_gail", **out}, args.seeds
         if args.add:
             stored = read_result(args.out)
-            payload = merged(stored, {**payload, "revision": git_revision()}, command)
+            try:
+                payload = merged(stored, {**payload, "revision": git_revision()}, command)
+            except ValueError as e:   # keep the rows computed: they cost minutes each
+                side = side_path(args.out, seeds)
+                write_result(side, payload, command=command, seeds=seeds)
+                p.exit(2, f"{p.prog}: {e}\nthis run's rows are in {side}\n")
             command, seeds = payload.pop("command"), payload.pop("seeds")
         write_result(args.out, payload, command=command, seeds=seeds)
     return out
