@@ -203,7 +203,7 @@ def reprice(study: _cells.Study, b: _budget.Budget, since: str, only=(), root=No
     rates = measured_rates(root)
     priced = [(estimate(c, window, b.name), estimate(c, every, b.name, rates)) for c in grid]
     known = [w if w is not None else e for w, e in priced if (w or e) is not None]
-    n_window = sum(len(v) for (_, _, bn), v in window.items() if bn == b.name)
+    n_window = sum(len(v) for (_, _, bn, *n), v in window.items() if bn == b.name and not n)
     return {"since": since, "until": until, "cells": len(grid), "window_cells": n_window,
             "priced_from_window": sum(w is not None for w, _ in priced),
             "unknown": len(grid) - len(known), "cpu_seconds": sum(known),
