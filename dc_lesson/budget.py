@@ -102,6 +102,7 @@ class Budget:
     # interactions where the gate-passing learners' competence curves flattened
     # (``experiments.competence.budgets``; a task the study does not measure takes the
     # longest of them; a test holds these to that rule), 5 seeds (claims.MIN_SEEDS).
+    modes_seeds: int = 10    # Table I rerun (``sweep modes``): seeds per task, every task
     benchmark_seeds: int = 5
     benchmark_steps: tuple = (("hopper", 300_000), ("halfcheetah", 1_800_000),
                               ("default", 1_800_000))
@@ -150,7 +151,8 @@ PRESETS: dict[str, Budget] = {
                     competence_curve_points=2, competence_curve_episodes=1,
                     competence_eval_episodes=2, clonable_seeds=1,
                     clonable_eval_episodes=2, headroom_seeds=1, headroom_eval_episodes=2,
-                    benchmark_seeds=1, benchmark_steps=(("default", 4096),),
+                    benchmark_seeds=1, benchmark_steps=(("default", 4096),), modes_seeds=1,
+                    table1_mixture_seeds=1,
                     benchmark_eval_episodes=2, benchmark_curve_points=2,
                     benchmark_curve_episodes=1),
     "lesson": Budget("lesson", tour_episodes=10, video_steps=150, bench_steps=16000,

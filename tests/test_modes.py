@@ -1,136 +1,81 @@
-"""Which mode an episode took: realizable experts, arrival labels, mode shares."""
+"""Table I rerun under the gate (issue 41, item 4): its rows from the gate, the mixture BC
+trained until it matches plain BC, and DC from the best BC."""
 
-import numpy as np
 import pytest
 
-from dc_lesson import tasks
-from dc_lesson.data import modes, rollout
-from dc_lesson.experts import EXPECTED_SHARES, load_expert
+from dc_lesson import budget
+from dc_lesson.experiments.studies import benchmark as bm
+from dc_lesson.experiments.studies import modes
+
+GATE = {"gate": {"dc": {"passed": True, "reason": ""},
+                 "dril": {"passed": True, "reason": ""},
+                 "gail": {"passed": False, "reason": "keep on cartpole"}}}
 
 
-def _first_choices(task: str, seeds) -> np.ndarray:
-    """The expert's mode per episode, read from its choice after the first step."""
-    expert, _ = load_expert(task)
-    env = tasks.load_vec(task, len(seeds))
-    obs, _ = env.reset(seeds)
-    if hasattr(expert, "reset"):
-        expert.reset(seeds)
-    expert(obs)
-    return np.asarray(expert.chosen)
+@pytest.fixture
+def gate(monkeypatch):
+    monkeypatch.setattr(bm, "_stored", lambda name: GATE if name == bm.COMPETENCE else None)
 
 
-@pytest.mark.parametrize("task", ["reacher2", "reacher4", "halfcheetah2"])
-def test_realizable_experts_choose_from_the_start_state_in_the_documented_shares(task):
-    seeds = rollout.episode_seeds(7, 200)
-    chosen = _first_choices(task, seeds)
-    # the same start gives the same mode: the choice is a function of the first observation
-    again = _first_choices(task, seeds[::-1])[::-1]
-    np.testing.assert_array_equal(chosen, again)
-    # ... and of nothing else: a copy of a start state under another seed takes the same mode
-    expert, _ = load_expert(task)
-    if hasattr(expert, "reset"):
-        expert.reset([123456789] * 4)
-    env = tasks.load_vec(task, 4)
-    obs, _ = env.reset(seeds[:4])
-    expert(obs)
-    np.testing.assert_array_equal(expert.chosen, chosen[:4])
-    shares = np.bincount(chosen, minlength=len(EXPECTED_SHARES[task])) / len(seeds)
-    # 200 Bernoulli draws per share: sd <= 0.035; 0.11 is more than 3 sd
-    np.testing.assert_allclose(shares, EXPECTED_SHARES[task], atol=0.11)
+def test_rows_follow_the_gate_and_the_mixture_rows_run_on_fewer_seeds(gate):
+    lesson = budget.get("lesson")
+    table = modes.rows()
+    assert "dril" in table and table["dril"].stage == 3
+    assert not any(r.startswith("gail") for r in table)
+    grid = [c for c in modes.cells_at(lesson) if c.learner != "expert"]
+    for task in modes.TASKS:
+        n = {r: sum(c.task == task and c.row == r for c in grid) for r in table}
+        assert n["dc"] == n["dc-lib"] == n["bc-lib"] == lesson.modes_seeds
+        assert n["bc-mix"] == n["dc-mix"] == lesson.table1_mixture_seeds
+    dc = next(c for c in grid if c.row == "dc" and c.task == "reacher2")
+    assert dc.config["steps"] == lesson.benchmark_steps_for("reacher2")
+    assert dc.config["dc"]["start_log_std"] == -2.0
+    coin = {c.config["demo_variant"] for c in grid if c.row.endswith("coin")}
+    assert coin == {"coin"}
+    # a mixture BC runs just before the DC that starts from it (one worker reuses it)
+    order = [(c.seed, c.task, c.row) for c in grid if c.stage == 4]
+    for s, t, r in order:
+        if r == "dc-mix":
+            assert order.index((s, t, "bc-mix")) < order.index((s, t, "dc-mix"))
+    experts = [c for c in modes.cells_at(lesson) if c.learner == "expert"]
+    assert len(experts) == len(modes.TASKS) * lesson.modes_seeds
 
 
-def test_coin_variants_ignore_the_start_state():
-    """The coin expert picks different modes for the same start (seeded by the episode)."""
-    expert, info = load_expert("reacher4", "coin")
-    assert info["variant"] == "coin"
-    env = tasks.load_vec("reacher4", 2)
-    seeds = rollout.episode_seeds(3, 64)
-    picks = []
-    for s in seeds:
-        obs, _ = env.reset([s, s])
-        expert.reset([s, s + 1])              # same start state, two coins
-        expert(obs)
-        picks.append(tuple(expert.chosen))
-    assert any(a != b for a, b in picks)
-    with pytest.raises(ValueError, match="no expert variant"):
-        load_expert("cartpole", "coin")
+def test_the_mixture_trains_longer_until_it_matches_plain_bc(monkeypatch):
+    lesson = budget.get("lesson")
+    trained = []
+
+    class Fake:
+        def __init__(self, epochs, mixture):
+            self.policy = (epochs, mixture)
+
+    monkeypatch.setattr(modes._bc, "train",
+                        lambda task, demos, cfg, progress: trained.append(cfg.epochs) or
+                        Fake(cfg.epochs, cfg.policy == "mixture"))
+    monkeypatch.setattr(modes.protocol, "check_disjoint", lambda *a: None)
+    scores = {(200, False): 0.9, (200, True): 0.5, (400, True): 0.86, (800, True): 0.95}
+    monkeypatch.setattr(modes, "_match_score", lambda task, p: scores[p])
+    policy, rec = modes.matched_mixture("reacher2", None, 0, lesson)
+    assert policy == (400, True) and rec["matched"] and rec["target"] == 0.9
+    assert [t["epochs"] for t in rec["tries"]] == [200, 400]     # stopped at the first match
+    scores[(400, True)] = 0.7
+    scores[(800, True)] = 0.7
+    policy, rec = modes.matched_mixture("reacher2", None, 0, lesson)
+    assert policy == (800, True) and not rec["matched"] and len(rec["tries"]) == 3
 
 
-def test_an_episode_that_never_arrives_has_mode_none():
-    for task in ("reacher4", "halfcheetah2"):
-        trajs = rollout.collect(task, rollout.RandomPolicy(task, 0), 4, seed=1)
-        assert [t.mode for t in trajs] == [tasks.NO_MODE] * 4
-        shares = modes.mode_shares(task, trajs)
-        assert shares["none"] == 1.0 and list(shares)[-1] == "none"
-
-
-def test_arriving_and_leaving_is_no_mode_and_staying_is():
-    task = tasks.make("reacher2").task
-    targets = task.targets
-    stay = np.repeat(targets[1:2], 1001, axis=0)
-    assert task.episode_mode(stay) == 1
-    leave = stay.copy()
-    leave[-200:] = 0.0                       # left for the centre in the last fifth
-    assert task.episode_mode(leave) == tasks.NO_MODE
-    near = stay + [0.06, 0.0]                # hovering outside the reward radius
-    assert task.episode_mode(near) == tasks.NO_MODE
-    cheetah = tasks.make("halfcheetah2").task
-    assert cheetah.episode_mode(np.full((1001, 1), 3.0)) == 0
-    assert cheetah.episode_mode(np.full((1001, 1), -3.0)) == 1
-    assert cheetah.episode_mode(np.full((1001, 1), 0.3)) == tasks.NO_MODE
-    single = tasks.make("reacher1").task
-    assert single.episode_mode(np.zeros((1001, 2))) == 0     # one mode: always taken
-
-
-def test_total_variation_of_mode_shares():
-    p = {"red": 0.5, "blue": 0.5, "none": 0.0}
-    assert modes.total_variation(p, p) == 0
-    assert modes.total_variation(p, {"red": 1.0, "blue": 0.0, "none": 0.0}) == 0.5
-    assert modes.total_variation({"red": 1.0}, {"blue": 1.0}) == 1.0
-
-
-def test_both_evaluations_side_by_side():
-    """Mean-action and sampled evaluation of one policy: the same start states, different
-    actions; sampled episodes repeat for the same seed; mode TV is measured against the
-    reference's shares."""
-    import torch
-
-    from dc_lesson import data, evaluation
-    from dc_lesson.nn.policies import GaussianPolicy
-    spec = tasks.spec("reacher2")
-    torch.manual_seed(0)
-    pi = GaussianPolicy(spec.obs_dim, spec.act_dim, log_std_init=0.0)
-    ref = data.load_demos("reacher2", n_trajectories=6)
-    both = evaluation.evaluate_both("reacher2", pi, ref, n_episodes=3)
-    again = evaluation.evaluate_policy("reacher2", pi, ref, n_episodes=3, actions="sampled")
-    assert both["sampled"]["returns"] == again["returns"]
-    assert both["mean"]["returns"] != both["sampled"]["returns"]
-    for ev in both.values():
-        assert 0 <= ev["mode_tv"] <= 1
-        assert ev["mode_tv"] == modes.total_variation(ev["mode_shares"],
-                                                      modes.mode_shares("reacher2",
-                                                                        ref.trajectories))
-    with pytest.raises(ValueError, match="actions must be one of"):
-        evaluation.evaluate_policy("reacher2", pi, ref, n_episodes=1, actions="greedy")
-
-
-def test_an_evaluation_without_divergences_reads_no_reference(monkeypatch):
-    """``divergences=False``: the same episodes and returns as a full evaluation, EMD / KL /
-    RKL and mode TV None, and no demonstrations loaded (never a silent stand-in reference)."""
-    import torch
-
-    from dc_lesson import data, evaluation
-    from dc_lesson.evaluation import evaluate as _evaluate
-    from dc_lesson.nn.policies import GaussianPolicy
-    spec = tasks.spec("reacher2")
-    torch.manual_seed(0)
-    pi = GaussianPolicy(spec.obs_dim, spec.act_dim)
-    full = evaluation.evaluate_policy("reacher2", pi, data.load_demos("reacher2"), n_episodes=2)
-
-    def refuse(*a, **k):
-        raise AssertionError("a reference was loaded")
-    monkeypatch.setattr(_evaluate._data, "load_demos", refuse)
-    bare = evaluation.evaluate_policy("reacher2", pi, n_episodes=2, divergences=False)
-    assert bare["returns"] == full["returns"] and bare["scaled_return"] == full["scaled_return"]
-    assert bare["emd"] is None and bare["kl"] is None and bare["rkl"] is None
-    assert bare["mode_tv"] is None and bare["mode_shares"] == full["mode_shares"]
+def test_a_mixture_dc_cell_starts_from_the_matched_mixture(gate, monkeypatch):
+    from dc_lesson import evaluation
+    real = evaluation.evaluate_both
+    monkeypatch.setattr(modes._t1._evaluation, "evaluate_both",
+                        lambda task, policy, reference, **kw: real(task, policy, None, **{
+                            **kw, "keep_features": True, "divergences": False}))
+    monkeypatch.setattr(modes._common, "reference", lambda needs: None)
+    smoke = budget.get("smoke")
+    grid = [c for c in modes.cells_at(smoke) if c.task == "reacher2" and c.seed == 0]
+    bc_mix = next(c for c in grid if c.row == "bc-mix")
+    dc_mix = next(c for c in grid if c.row == "dc-mix")
+    a, _ = modes.run_cell(bc_mix, ())
+    b, _ = modes.run_cell(dc_mix, ())
+    assert a["match"] == b["match"] and a["match"]["tries"]
+    assert "start" not in b and b["curve"]

@@ -16,6 +16,7 @@
 | ``headroom`` | ``headroom.json`` (issue 41: the benchmark's protocol) | BC on GAIL's subsampled and on full-length demonstrations per task, count and seed |
 | ``benchmark`` | ``benchmark.json`` (issue 41: Table III, Figures 9 and 11 rerun) | BC and every learner that passed the gate, on the headroom study's demonstrations, at the competence curves' interactions, per task, count and seed; the expert row |
 | ``ablations`` | ``ablations.json`` (issue 41: Figures 3-6 rerun) | DC's loops, its equal-budget control, consensus ADMM and its learning rates on the benchmark's hopper start, per seed |
+| ``modes`` | ``modes.json`` (issue 41: Table I rerun) | DC and the gate-passing learners on the multi-mode tasks, DC from the best BC, the mixture BC trained until it matches plain BC, 10 seeds per task |
 | ``softflow_fit`` | ``softflow_fit_cells.json`` (chapter 03 reads it and the cells' arrays through ``fit_record``) | SoftFlow on the circle toy and on expert states, and each task's data and baselines |
 
 Beside them, what they are made of: ``_learners`` (the GAIL and DC cells of the hopper studies),
@@ -31,7 +32,7 @@ from dc_lesson.experiments.cells import Study
 
 NAMES = ("reference", "bc_demos", "bc_drift", "gail_lr", "dc_ablation", "dc_lr", "table1",
          "table3", "softflow_fit", "competence", "start_noise", "clonable", "headroom",
-         "benchmark", "ablations")
+         "benchmark", "ablations", "modes")
 
 # The grid the book reads: every study.  ``dc-lesson sweep all`` runs them in this order (the
 # reference first: the others read it), and its ``--dry-run`` ledgers them.

@@ -174,14 +174,15 @@ def cells_at(b) -> list[cells.Cell]:
     return _im.expert_rows(NAME, _im.TASKS, b) + learners   # the floor first: it is cheap
 
 
-def _mixture_start(policy):
-    """The mixture BC as a start for RL: each component's log-std set to the Gaussian warm
-    start's (state-independent), means and weights untouched."""
+def _mixture_start(policy, log_std: float = _bc.WARM_START_LOG_STD):
+    """The mixture BC as a start for RL: each component's log-std set to ``log_std`` (the
+    Gaussian warm start's here; the gate's in ``modes``), state-independent, means and
+    weights untouched."""
     policy = copy.deepcopy(policy)
     k, a = policy.k, policy.act_dim
     with torch.no_grad():
         policy.head.weight[k + k * a:].zero_()
-        policy.head.bias[k + k * a:].fill_(_bc.WARM_START_LOG_STD)
+        policy.head.bias[k + k * a:].fill_(float(log_std))
     return policy
 
 
@@ -297,29 +298,37 @@ PAIRS = (("dc", "bc"), ("dc", "gail"), ("dc", "bc-all"), ("dc", "bc-full"), ("ga
          ("dc-mix", "bc-mixstart"), ("dc-mix-coin", "bc-mixstart-coin"))
 
 
-def aggregate(records, b) -> dict:
+def both_evaluations(records, observe, pairs, eval_episodes: int) -> dict:
+    """Per evaluation of :data:`ACTIONS`: the table, the expert row, the paired differences of
+    ``pairs`` (the aggregate's measures and the TV of a seed's mode shares from the
+    reference's: the mode question's own measure, per seed so that it pairs), the mode
+    summary and the observations ``observe(records, actions)`` gives (this study's and
+    ``modes``')."""
     from dc_lesson.experiments import aggregate as _agg
-    out = {"interval": "95% bootstrap (BCa) over seeds; paired: of the per-seed differences",
-           "protocol": _im.protocol_config(b), "rows": {k: dataclasses.asdict(v)
-                                                        for k, v in ROWS.items()}}
-    eval_episodes = records[0]["config"].get("eval_episodes", b.il_eval_episodes)
     shares = _im.reference_shares(records)
-    # paired: the aggregate's measures and the TV of a seed's mode shares from the
-    # reference's (the mode question's own measure; the mixture rows are about it)
-    paired_measures = (*_agg.MEASURES, "mode_tv")
+    out = {}
     for actions in ACTIONS:
-        obs = observations(records, actions)   # the expert row: its one evaluation in both
-        for o in obs:   # the mode TV as a per-seed measure, so that it can be paired too
+        obs = observe(records, actions)   # the expert row: its one evaluation in both
+        for o in obs:
             ref = shares.get(o["task"])
             o["mode_tv"] = _stats.tv(ref, o["mode_shares"]) if ref and o.get(
                 "mode_shares") else None
         out[actions] = {
             "table": _agg.table([o for o in obs if o["row"] != "expert"]),
             "expert": _agg.table([o for o in obs if o["row"] == "expert"]),
-            "paired": [p for a, bb in PAIRS
-                       for p in _agg.paired(obs, a, bb, measures=paired_measures)],
+            "paired": [p for a, bb in pairs for p in _agg.paired(
+                obs, a, bb, measures=(*_agg.MEASURES, "mode_tv"))],
             "modes": _im.mode_summary(obs, shares, eval_episodes),
             "observations": obs}
+    return out
+
+
+def aggregate(records, b) -> dict:
+    out = {"interval": "95% bootstrap (BCa) over seeds; paired: of the per-seed differences",
+           "protocol": _im.protocol_config(b), "rows": {k: dataclasses.asdict(v)
+                                                        for k, v in ROWS.items()}}
+    eval_episodes = records[0]["config"].get("eval_episodes", b.il_eval_episodes)
+    out.update(both_evaluations(records, observations, PAIRS, eval_episodes))
     return out
 
 

@@ -1,0 +1,285 @@
+"""The paper's Table I asked again under the competence gate (issue 41, item 4; ``dc-lesson
+sweep modes``, ``modes.json``): does DC keep the expert's modes where a BC start does not,
+and which learner collapses on the hidden-coin demonstrations?  The first grid (``table1``,
+300,000 interactions, every learner at its preset) stays stored beside it for chapter 06's
+old -> new verdict table.
+
+Cells: per task of ``reacher2, reacher4, halfcheetah2``, seed of ``range(modes_seeds)`` (10
+on every task: halfcheetah2's first grid had 5, too few to tell its rows apart) and row of
+:data:`ROWS`, on the first ``il_demos`` (18) whole demonstrations (the realizable experts',
+or the hidden-coin experts' for the ``*-coin`` rows); the RL rows at the benchmark's
+interactions (``budget.benchmark_steps_for``: no competence curve measures these tasks, so
+they take the longest the curves needed) with the gate's settings
+(``competence.gated_config``); every policy evaluated with its mean action and with sampled
+actions against the fresh reference, as in the first grid.
+
+The rows (stage: the order a sweep runs them in):
+
+==================  =====  ===================================================================
+row                 stage  what it is
+==================  =====  ===================================================================
+``bc`` (start)             the 70/30 BC warm start of the ``dc`` and baseline rows
+``bc-full``         1      BC on all 18 to a fixed budget, the last kept
+``bc-lib``          1      BC as imitation 1.0.1 trains it (the standard library's recipe)
+``dc``              1      DC from the 70/30 start
+``dc-lib``          1      DC from ``bc-lib``, the best BC a user could have had (its start is
+                           the ``bc-lib`` row's policy, its noise reset by the gate's rule)
+``dc-coin``         2      DC on the hidden-coin demonstrations, from their 70/30 BC
+``<learner>``       3      every other RL learner that passed the gate, from the 70/30 start
+``bc-mix``          4      the mixture BC (4 components) trained until it matches plain BC
+``dc-mix``          4      DC from it
+``bc-full-coin``    4      plain BC on the coin demonstrations (the mixture's matched control)
+``bc-mix-coin``     4      the mixture BC on them, trained until it matches ``bc-full-coin``
+``dc-mix-coin``     4      DC from it
+==================  =====  ===================================================================
+
+**The mixture BC is trained until it matches plain BC** (:func:`matched_mixture`): the same
+seed's plain BC (``bc-full``'s training, the same demonstrations) is scored with its mean
+action on :data:`MATCH_EPISODES` episodes from :data:`MATCH_SEED` (no evaluation or
+demonstration episode shares their starts); the mixture is trained for ``bc_max_epochs``
+epochs, then twice and four times as many (each a fresh, deterministic run), and the first
+that scores within :data:`MATCH_TOLERANCE` of plain BC on those episodes is kept, else the
+longest; the cell records the epochs, both scores and whether it matched.  The mixture DC is
+judged only on seeds whose start matched: a weaker start would make any comparison with the
+Gaussian DC a comparison of starts (the first grid's mixture BC was weaker than plain BC on
+every task).  The mixture's component spreads are set to the gate's exploration noise
+(``algorithms.base.START_LOG_STD``), as every other start's.
+
+Not run: GAIL and its variants and the other baselines that failed the competence gate
+(``learners`` in the aggregate says why); the first grid's DC diagnostics (``dc-noppo``,
+``dc-raw``, ``dc-gailreward``), which explain DC rather than judge a claim.
+"""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+import json
+import time
+
+from dc_lesson import algorithms as _algorithms
+from dc_lesson import budget as _budget
+from dc_lesson import evaluation as _evaluation
+from dc_lesson.algorithms import base as _base
+from dc_lesson.algorithms import bc as _bc
+from dc_lesson.data import store as _store
+from dc_lesson.experiments import cells, protocol
+from dc_lesson.experiments.studies import _common, _imitation as _im
+from dc_lesson.experiments.studies import benchmark as _bench
+from dc_lesson.experiments.studies import competence as _competence
+from dc_lesson.experiments.studies import table1 as _t1
+
+NAME = "modes"
+TASKS = ("reacher4", "reacher2", "halfcheetah2")
+MATCH_SEED = 5000          # away from the evaluation (1000+), reference (3000) and headroom's
+MATCH_EPISODES = 10
+MATCH_TOLERANCE = 0.05     # the verdicts' smallest effect on scaled return
+MATCH_SCALES = (1, 2, 4)   # the mixture's epochs, in multiples of bc_max_epochs
+
+
+@dataclasses.dataclass(frozen=True)
+class Row:
+    learner: str
+    variant: str
+    stage: int
+    start: str = ""        # "" (the 70/30 BC), "lib" (bc-lib's policy), "mix" (matched mixture)
+    demos: str = ""        # "" or "coin"
+    mixture_seeds: bool = False
+
+    @property
+    def name(self) -> str:
+        return self.learner + (f"-{self.variant}" if self.variant else "")
+
+
+FIXED_ROWS = (
+    Row("bc", "full", 1), Row("bc", "lib", 1), Row("dc", "", 1), Row("dc", "lib", 1, "lib"),
+    Row("dc", "coin", 2, demos="coin"),
+    Row("bc", "mix", 4, "mix", mixture_seeds=True),
+    Row("dc", "mix", 4, "mix", mixture_seeds=True),
+    Row("bc", "full-coin", 4, demos="coin", mixture_seeds=True),
+    Row("bc", "mix-coin", 4, "mix", "coin", mixture_seeds=True),
+    Row("dc", "mix-coin", 4, "mix", "coin", mixture_seeds=True),
+)
+
+
+def rows(competence: dict | None = None) -> dict[str, Row]:
+    """The rows: :data:`FIXED_ROWS` and, at stage 3, every other RL learner that passed the
+    gate (``benchmark.listed``), from the 70/30 start."""
+    extra = [Row(x, "", 3) for x in _bench.listed(competence) if x not in ("bc", "dc")]
+    return {r.name: r for r in FIXED_ROWS + tuple(extra)}
+
+
+def seeds(row: Row, b) -> range:
+    return range(min(b.table1_mixture_seeds, b.modes_seeds) if row.mixture_seeds
+                 else b.modes_seeds)
+
+
+def learner_config(row: Row, b, task: str, seed: int):
+    if row.name in ("bc-lib",):
+        return _bc.library_recipe(seed)
+    if row.learner == "bc":
+        return _t1._bc_config(b, seed, row.start == "mix", full=True)
+    return _competence.gated_config(row.learner, b, b.benchmark_steps_for(task), seed, task)
+
+
+def _demo_variant(row: Row) -> str | None:
+    return row.demos or None
+
+
+def cells_at(b) -> list[cells.Cell]:
+    sized = dataclasses.replace(b, sweep_seeds_reacher=b.modes_seeds,
+                                sweep_seeds_other=b.modes_seeds)
+    table = rows()
+    out = []
+    for row in table.values():
+        for task in TASKS:
+            steps = 0 if row.learner == "bc" else b.benchmark_steps_for(task)
+            for seed in seeds(row, b):
+                cfg = _im.without_seed(json.loads(learner_config(row, b, task, seed).to_json()))
+                extra = {"row_start": row.start, "demo_variant": _demo_variant(row),
+                         "match": {"seed": MATCH_SEED, "episodes": MATCH_EPISODES,
+                                   "tolerance": MATCH_TOLERANCE, "scales": list(MATCH_SCALES)}
+                         if row.start == "mix" else None}
+                c = _im.learner_cell(NAME, row.learner, task, seed, b, cfg,
+                                     variant=row.variant, steps=steps, **extra)
+                out.append(dataclasses.replace(c, stage=row.stage))
+    order = list(table)   # within a seed, a mixture BC just before the DC that starts from it
+    out.sort(key=lambda c: (c.stage, c.seed, TASKS.index(c.task), order.index(c.row)))
+    return _im.expert_rows(NAME, TASKS, sized) + out
+
+
+def _plain(task, demos, seed, b):
+    return _bc.train(task, demos, _t1._bc_config(b, seed, False, full=True),
+                     progress=False).policy
+
+
+def _match_score(task, policy) -> float:
+    return float(_evaluation.evaluate_policy(task, policy, None, n_episodes=MATCH_EPISODES,
+                                             seed=MATCH_SEED, divergences=False)
+                 ["scaled_return"])
+
+
+def matched_mixture(task: str, demos, seed: int, b) -> tuple:
+    """``(mixture BC policy, record)``: the mixture trained for ``bc_max_epochs`` x each of
+    :data:`MATCH_SCALES` until its mean action scores within :data:`MATCH_TOLERANCE` of the
+    same seed's plain BC on the match episodes (module docstring); the record holds the
+    target, every try's score and epochs, and whether it matched."""
+    protocol.check_disjoint(task, {"match": (MATCH_SEED, MATCH_EPISODES),
+                                   "evaluation": (protocol.expert_eval_seed(0),
+                                                  b.il_eval_episodes)})
+    target = _match_score(task, _plain(task, demos, seed, b))
+    tries = []
+    for scale in MATCH_SCALES:
+        cfg = dataclasses.replace(_t1._bc_config(b, seed, True, full=True),
+                                  epochs=scale * b.bc_max_epochs)
+        policy = _bc.train(task, demos, cfg, progress=False).policy
+        tries.append({"epochs": cfg.epochs, "scaled_return": _match_score(task, policy)})
+        if tries[-1]["scaled_return"] >= target - MATCH_TOLERANCE:
+            break
+    return policy, {"target": target, "tries": tries,
+                    "matched": tries[-1]["scaled_return"] >= target - MATCH_TOLERANCE}
+
+
+def _start(row: Row, task, demos, seed, b, c):
+    """The row's start and, for a mixture, its match record (cached per worker)."""
+    key = (NAME, task, c["demo_variant"], row.start, seed, b.bc_max_epochs)
+    if row.start == "mix":
+        policy, record = _im.cached_start(key, lambda: matched_mixture(task, demos, seed, b))
+        return policy, record
+    if row.start == "lib":
+        return _im.cached_start(key, lambda: _bc.train(task, demos, _bc.library_recipe(seed),
+                                                       progress=False).policy), None
+    return _im.cached_start(key, lambda: _bc.warm_start_policy(
+        demos, seed, max_epochs=b.bc_max_epochs)), None
+
+
+def run_cell(cell, needs):
+    c = cell.config
+    row = rows()[cell.row]
+    b = _im.sized_budget(c)
+    cfg = learner_config(row, b, cell.task, cell.seed)
+    _im.check_config(cell, json.loads(cfg.to_json()))
+    reference = _common.reference(needs)
+    demos = _store.load_demos(cell.task, n_trajectories=c["n_demos"], variant=c["demo_variant"])
+    out, feats = {}, {}
+    t0 = time.perf_counter()
+    if row.learner == "bc" and row.start != "mix":
+        policy = _bc.train(cell.task, demos, cfg, progress=False).policy
+    else:
+        start, match = _start(row, cell.task, demos, cell.seed, b, c)
+        if match is not None:
+            out["match"] = match
+        if row.learner == "bc":
+            policy = start
+        else:
+            if row.start == "":   # the 70/30 start: its own row, evaluated where it is used
+                out["start"], feats["start"] = _t1._evaluate(cell.task, start, reference, c,
+                                                             cell.seed)
+            if row.start == "mix":
+                start = _t1._mixture_start(start, _base.START_LOG_STD)
+            t1 = time.perf_counter()
+            result = _algorithms.get(row.learner).train(
+                cell.task, demos, cfg, policy=copy.deepcopy(start), progress=False)
+            out["curve"] = _t1._curve(result.log)
+            out["rl_seconds"] = time.perf_counter() - t1
+            policy = result.policy
+    out["train_seconds"] = time.perf_counter() - t0
+    out["final"], feats["final"] = _t1._evaluate(cell.task, policy, reference, c, cell.seed)
+    return out, feats
+
+
+def observations(records, actions: str) -> list[dict]:
+    """One observation per policy a cell evaluated with ``actions``; a DC cell's 70/30 start
+    becomes row ``bc`` (``bc-coin`` on the coin demonstrations), once per (task, seed); a
+    mixture row carries ``matched`` (its start, or itself, matched plain BC)."""
+    from dc_lesson.experiments import aggregate as _agg
+    obs = [_agg.observation(r, r["result"]["measures"]) for r in records
+           if "measures" in r["result"]]        # the expert row: one evaluation
+    seen = set()
+    for r in (r for r in records if "measures" not in r["result"]):
+        res, cell = r["result"], r["cell"]
+        if "start" in res:
+            start = "bc" + ("-coin" if r["config"]["demo_variant"] else "")
+            key = (cell["task"], cell["seed"], start)
+            if key not in seen:
+                seen.add(key)
+                obs.append(_agg.observation(r, res["start"][actions], row=start))
+        extra = {"curve": res.get("curve")}
+        if "match" in res:
+            extra["matched"] = res["match"]["matched"]
+        obs.append(_agg.observation(r, res["final"][actions], **extra))
+    return obs
+
+
+PAIRS = (("dc", "bc"), ("dc", "bc-full"), ("dc", "bc-lib"), ("dc-lib", "bc-lib"),
+         ("dc-lib", "dc"), ("bc-lib", "bc-full"), ("dc-coin", "bc-coin"),
+         ("bc-mix", "bc-full"), ("dc-mix", "bc-mix"), ("dc-mix", "dc"),
+         ("bc-mix-coin", "bc-full-coin"), ("dc-mix-coin", "bc-mix-coin"),
+         ("dc-mix-coin", "dc-coin"), ("bc-full-coin", "bc-coin"))
+
+
+def aggregate(records, b) -> dict:
+    from dc_lesson.experiments import aggregate as _agg
+    from dc_lesson.experiments import competence as _gate
+    table = rows()
+    pairs = PAIRS + tuple(("dc", x) for x in table if table[x].stage == 3) + tuple(
+        (x, "bc") for x in table if table[x].stage == 3)
+    out = {"interval": "95% bootstrap (BCa) over seeds; paired: of the per-seed differences",
+           "protocol": _im.protocol_config(b), "rows": {k: dataclasses.asdict(v)
+                                                        for k, v in table.items()},
+           "learners": _bench.learners(), "steps": {t: b.benchmark_steps_for(t) for t in TASKS},
+           "match": {"seed": MATCH_SEED, "episodes": MATCH_EPISODES,
+                     "tolerance": MATCH_TOLERANCE, "scales": list(MATCH_SCALES)},
+           _gate.GRID_MARK: _gate.RULES}
+    out.update(_t1.both_evaluations(records, observations, pairs, b.il_eval_episodes))
+    return out
+
+
+STUDY = cells.Study(NAME, "Table I rerun under the gate: the multi-mode tasks, the mixture "
+                    "matched to plain BC, DC from the best BC", cells=cells_at,
+                    run_cell=lambda c, n: _common.run_expert_or(c, n, run_cell),
+                    aggregate=aggregate, result_file="modes.json")
+
+__all__ = ["FIXED_ROWS", "MATCH_EPISODES", "MATCH_SCALES", "MATCH_SEED", "MATCH_TOLERANCE",
+           "NAME", "PAIRS", "Row", "STUDY", "TASKS", "cells_at", "learner_config",
+           "matched_mixture", "observations", "rows", "run_cell", "seeds"]
