@@ -314,6 +314,13 @@ else:
     # going nowhere is not covering the modes: arrivals beside the largest mode among them
     display(Markdown("Where the episodes go (mean over seeds):\n\n" + "\n".join(
         table_one.arrival_lines(t1, ("expert", "bc-coin", "dc-coin", "gail-coin")))))
+    # which learner collapses on the hidden coin, by the rule (a majority of its seeds)
+    display(Markdown("**Who collapses on the hidden coin** (a row collapses on a task when "
+                     "more than half of its seeds put at least "
+                     f"{claims.COLLAPSE_SHARE:.0%} of their episodes at one mode or nowhere): "
+                     + table_one.collapse_words(t1, ("bc-coin", "dc-coin", "gail-coin"))
+                     + " GAIL failed the competence gate of chapter 5, so its row is shown, "
+                       "not judged."))
 
 # %% [markdown]
 # However DC and GAIL move their start, no Markov unimodal policy acting with its mean action

@@ -752,6 +752,20 @@ def test_arrival_lines_say_each_rows_arrivals_and_collapsed_seeds_per_task():
                      "80% of their arrivals at one mode."]
 
 
+def test_the_collapse_words_say_which_row_collapses_where_counting_episodes_going_nowhere():
+    two = {"red": 0.5, "blue": 0.5, "none": 0.0}
+    nowhere = {"red": 0.2, "blue": 0.0, "none": 0.8}
+    obs = [{"task": "reacher2", "row": "gail-coin", "seed": s, "mode_shares": nowhere}
+           for s in range(3)]
+    obs += [{"task": "reacher2", "row": "dc-coin", "seed": s,
+             "mode_shares": two if s else nowhere} for s in range(3)]
+    obs += [{"task": "reacher4", "row": "dc-coin", "seed": 0, "mode_shares": nowhere}]
+    words = table_one.collapse_words({"mean": {"observations": obs}},
+                                     ("gail-coin", "dc-coin", "bc-coin"))
+    assert words == ("`gail-coin` collapses on `reacher2` (3 of 3 seeds); `dc-coin` collapses "
+                     "on `reacher4` (1 of 1 seeds); not on `reacher2` (1 of 3 seeds).")
+
+
 def test_a_comparison_over_the_tasks_is_one_holm_family():
     # issue 40: chapter 5 worded each (baseline, task) alone; table_one.family adjusts a
     # comparison's tasks together, so a p of 0.048 on one task of three is not decisive

@@ -194,6 +194,28 @@ def arrival_lines(rec: dict, rows, actions: str = "mean") -> list[str]:
     return out
 
 
+def collapse_words(rec: dict, rows, actions: str = "mean") -> str:
+    """Which of ``rows`` collapses, in words, by a fixed rule: a row collapses on a task when
+    more than half of its seeds did (``claims.collapsed``: at most 1 - COLLAPSE_SHARE of a
+    seed's episodes reach a mode other than its largest, episodes arriving nowhere
+    included); per row, the tasks where it does and where it does not, with the counts.
+    Descriptive: which row's collapse a claim judges, and against what, is the verdicts'."""
+    obs = rec[actions].get("observations", [])
+    out = []
+    for row in rows:
+        did, didnt = [], []
+        for task in TASKS:
+            mine = [claims.collapsed(o) for o in obs if o["task"] == task and o["row"] == row]
+            mine = [m for m in mine if m is not None]
+            if mine:
+                (did if sum(mine) > len(mine) / 2 else didnt).append(
+                    f"`{task}` ({sum(mine)} of {len(mine)} seeds)")
+        if did or didnt:
+            out.append(f"`{row}` collapses on " + (", ".join(did) if did else "no task")
+                       + ("" if not didnt else "; not on " + ", ".join(didnt)))
+    return ("; ".join(out) + ".") if out else ""
+
+
 def _arrival_columns(a: dict | None) -> dict:
     if a is None:
         return {"arrived": "", "largest mode of arrivals": ""}
@@ -564,7 +586,7 @@ def costs(rec: dict, since: str | None = None, until: str | None = None) -> list
     return _agg.costs("table1", rec["budget"], since, until)
 
 
-__all__ = ["CONTROLS", "HEADLINE_ROWS", "PAPER_TABLE_I", "RESULT", "ROWS", "TASKS",
+__all__ = ["collapse_words", "CONTROLS", "HEADLINE_ROWS", "PAPER_TABLE_I", "RESULT", "ROWS", "TASKS",
            "across_tasks", "against_imitation", "beside_paper", "controls",
            "against_start", "costs", "coverage_figures", "curves", "features",
            "final_logs", "fmt_tv", "summary_lines", "tv_band",
