@@ -115,6 +115,19 @@ def test_verdicts_give_each_answer_and_judge_dril_at_the_fewest_demonstrations_o
                for v in few for e in v.per_task), "too few seeds"
 
 
+def test_each_task_is_judged_at_its_own_fewest_and_most_demonstrations():
+    # the benchmark's counts differ by task (issue 41): cartpole 1 and 25, hopper 11 and 25
+    rec = {"observations": _obs(0.2, tasks=("ant",), counts=(1, 25))["observations"]
+           + _obs(0.2, tasks=("walker",), counts=(11, 25))["observations"]}
+    c = t3._claims
+    got = _by(t3.verdicts(rec))
+    assert {e.key for e in got[c.DC_BEATS_DRIL_FEW.name].per_task} == {("ant", 1),
+                                                                       ("walker", 11)}
+    assert {e.key for e in got[c.BC_IMPROVES.name].per_task} == {("ant", "1 -> 25"),
+                                                                 ("walker", "11 -> 25")}
+    assert len(got[c.DC_BEATS_BC.name].per_task) == 4
+
+
 def _single(dc_minus_gail, spread, bc_growth, n_seeds=6):
     out = []
     for task in ("ant", "hopper"):

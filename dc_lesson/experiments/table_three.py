@@ -240,30 +240,35 @@ def _curve_spread(o) -> float | None:
 
 def verdicts(rec: dict, competence: dict | str | None = "stored") -> list:
     """Each claim of :data:`CLAIMS` (a :class:`verdicts.Verdict`), judged over the (task,
-    count) pairs that have run: DRIL's and the curves' at the fewest demonstrations only,
-    BC's growth once per task (fewest against most, keyed ``"F -> M"``).  ``competence``:
+    count) pairs that have run: DRIL's and the curves' at each task's fewest demonstrations
+    only, BC's growth once per task (its fewest against its most, keyed ``"F -> M"``; the
+    benchmark's counts differ by task, the first grid's do not).  ``competence``:
     the stored competence gate by default (:func:`competence.mapping`: a learner not shown
     competent is not judged), or a mapping learner -> phrase, ``{}`` for none."""
     competence = _claims.competence_of(competence, rec)
     obs = [{**o, "curve_mean": _curve_mean(o), "curve_spread": _curve_spread(o)}
            for o in _common_curves([o for o in rec["observations"] if o["row"] != "expert"])]
     obs += _lowest_other(obs)
-    counts = sorted({o["n_demos"] for o in obs})
+    # each task's own fewest and most demonstrations (the benchmark's counts differ by task)
+    counts: dict = {}
+    for o in obs:
+        counts.setdefault(o["task"], set()).add(o["n_demos"])
+    fewest = {t: min(c) for t, c in counts.items()}
+    most = {t: max(c) for t, c in counts.items()}
     out = []
     if not counts:
         return out
     for claim in CLAIMS:
         if claim is _claims.BC_IMPROVES:
-            if len(counts) < 2:
+            if all(len(c) < 2 for c in counts.values()):
                 continue
-            span = f"{counts[0]} -> {counts[-1]}"
-            group = [{**o, "n_demos": span,
-                      "row": "bc@fewest" if o["n_demos"] == counts[0] else "bc@most"}
-                     for o in obs if o["row"] == "bc" and o["n_demos"] in (counts[0],
-                                                                           counts[-1])]
+            group = [{**o, "n_demos": f"{fewest[o['task']]} -> {most[o['task']]}",
+                      "row": "bc@fewest" if o["n_demos"] == fewest[o["task"]] else "bc@most"}
+                     for o in obs if o["row"] == "bc" and len(counts[o["task"]]) > 1
+                     and o["n_demos"] in (fewest[o["task"]], most[o["task"]])]
         else:
-            keep = counts[:1] if claim in FEWEST_ONLY else counts
-            group = [o for o in obs if o["n_demos"] in keep]
+            group = [o for o in obs if claim not in FEWEST_ONLY
+                     or o["n_demos"] == fewest[o["task"]]]
         out.append(_verdicts.judge_claim(claim, group, by=("task", "n_demos"),
                                          competence=competence, unit="task-count pairs",
                                          across=True))
