@@ -283,6 +283,23 @@ display(Markdown("The grids at the lesson budget, priced by the cells measured s
                  "(`dc-lesson sweep benchmark --dry-run`): " + "; ".join(_cost) + "."))
 
 # %% [markdown]
+# **The verdicts, old and new.** Each Table III claim as the first grid answered it (every
+# learner judged: it ran before the gate) beside its answer on the benchmark with headroom
+# (under the gate: a learner that failed it is not judged), as its cells come in
+# (`dc-lesson aggregate benchmark --partial`).
+
+# %%
+from dc_lesson.experiments import table_three as _t3_words
+
+_bench_rec = _report.stored("benchmark.json")
+_old = _report.stored("table3.json")
+if _old is not None:
+    if _bench_rec is not None:
+        print(f"benchmark.json: {_bench_rec['cells']['n']} of "
+              f"{_bench_rec['cells'].get('of', _bench_rec['cells']['n'])} cells")
+    display(pd.DataFrame(_t3_words.old_new(_old, _bench_rec)).set_index("claim"))
+
+# %% [markdown]
 # ## Table III and Figure 9
 
 # %%

@@ -215,3 +215,12 @@ def test_across_tasks_gives_iqm_and_probability_of_improvement():
     by = {r["learner"]: r for r in rows}
     assert by["dc"]["P(dc > learner)"] == "" and by["bc"]["pairs"] == 4
     assert by["gpril"]["P(dc > learner)"].startswith("1.00")
+
+
+def test_the_old_new_table_judges_the_first_grid_ungated_and_the_new_under_the_gate():
+    old, new = _obs(0.2), _obs(-0.2)
+    rows = {r["claim"]: r for r in t3.old_new(old, new, competence={"dc": "failed the gate"})}
+    c = t3._claims
+    assert rows[c.DC_BEATS_BC.name]["first grid"].startswith("reproduced")
+    assert rows[c.DC_BEATS_BC.name]["benchmark with headroom"].startswith("not judged")
+    assert all(r["benchmark with headroom"] == "not run yet" for r in t3.old_new(old, None))

@@ -275,6 +275,18 @@ def verdicts(rec: dict, competence: dict | str | None = "stored") -> list:
     return out
 
 
+def old_new(old: dict, new: dict | None, competence: dict | str | None = "stored") -> list:
+    """Chapter 06's old -> new table: per claim of :data:`CLAIMS`, its verdict on the first
+    grid (``old``: ``table3``, judged as it was published, every learner judged: it ran
+    before the gate) beside its verdict on the benchmark with headroom (``new``, under the
+    gate: a learner that failed it is not judged), or "not run yet"."""
+    then = {v.claim: v for v in verdicts(old, competence={})}
+    now = {v.claim: v for v in verdicts(new, competence)} if new else {}
+    return [{"claim": c.name, "first grid": then[c.name].verdict if c.name in then else "",
+             "benchmark with headroom": now[c.name].verdict if c.name in now
+             else "not run yet"} for c in CLAIMS]
+
+
 def across_tasks(rec: dict, n_demos=None, target: str = "dc", measure: str = "scaled_return",
                  seed: int = 0) -> list[dict]:
     """rliable's headline (Agarwal et al. 2021) over the (task, count) pairs where every
