@@ -137,3 +137,30 @@ def test_an_ablation_cell_keeps_dcs_iteration_log(stored, monkeypatch):
     assert len(out["log"]["pi_pi_prime_l1"]) == cell.config["dc"]["loops"] * \
         cell.config["dc"]["iterations"]
     assert out["log"]["primal_residual"][-1] is not None                # ADMM's residuals
+
+
+def test_the_ablation_claims_read_the_rerun_and_hold_gails_back():
+    """The rerun's aggregate judged by the first grid's claims: its loops compared on every
+    seed, GAIL's comparisons not judged (GAIL failed the gate, no GAIL row ran)."""
+    from dc_lesson.experiments import ablations as words
+    from dc_lesson.experiments import competence as gate
+    obs = []
+    for s in range(6):
+        start = {"scaled_return": 0.45 + 0.01 * s}
+        for row, v in (("dc-loops=1", 0.5), ("dc-loops=4", 0.9), ("dc-loops=1-long", 0.6),
+                       ("dc", 0.8), ("dc-lr=0.0001", 0.7), ("dc-lr=0.001", 0.75),
+                       ("dc-lr=0.003", 0.2)):
+            obs.append({"row": row, "task": "hopper", "n_demos": 11, "seed": s,
+                        "scaled_return": v + 0.01 * (-1) ** s, "start": start,
+                        "curve": [{"steps": k, "scaled_return": v} for k in (1, 2, 3, 4)],
+                        "log": {"pi_pi_prime_l1": [1.0, 0.5, 0.25, 0.1] * 2},
+                        "iterations": 4})
+    recs = words.from_rerun({"observations": obs, gate.GRID_MARK: gate.RULES})
+    assert sum(o["row"] == "bc" for o in recs["ablation"]["observations"]) == 6
+    got = {v.claim: v for v in words.verdicts(recs, competence={"gail": "failed the gate"})}
+    c = words._claims
+    assert got[c.LOOPS.name].verdict.startswith("reproduced")
+    assert got[c.EQUAL_BUDGET.name].verdict.startswith("reproduced")
+    assert got[c.CONVERGES.name].verdict.startswith("reproduced")
+    for claim in (c.FASTER, c.STABLE, c.LR_ROBUST):
+        assert got[claim.name].verdict.startswith("not judged"), got[claim.name].verdict

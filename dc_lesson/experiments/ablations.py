@@ -66,6 +66,34 @@ def observations(recs: dict) -> list[dict]:
     return obs
 
 
+RERUN = "ablations.json"   # the rerun on the benchmark's hopper start (issue 41, item 5)
+
+
+def from_rerun(rec: dict) -> dict:
+    """The ``ablations`` aggregate (the rerun on the benchmark's start: ``studies.ablations``)
+    in the form :func:`verdicts` and the figures read, as ``{"ablation": ...}``: each cell's
+    checkpoint curve as ``eval_curve``, DC's iteration log as ``curve`` with its iterations
+    per loop, the seed's start as a ``bc`` row once, and DC's default row also as
+    ``dc-lr=3e-4`` (the rerun runs DC's own rate once, not again in the sweep).  No GAIL rows:
+    GAIL failed the gate, so its claims say "not judged"."""
+    from dc_lesson.experiments import competence as _gate
+    obs, seen = [], set()
+    for o in rec["observations"]:
+        if o["row"] == "expert":
+            continue
+        if o.get("start") and o["seed"] not in seen:
+            seen.add(o["seed"])
+            obs.append({"row": "bc", "task": o["task"], "n_demos": o["n_demos"],
+                        "seed": o["seed"], **o["start"]})
+        new = {k: v for k, v in o.items() if k not in ("curve", "log", "start")}
+        new["eval_curve"], new["curve"] = o.get("curve"), o.get("log")
+        obs.append(new)
+        if o["row"] == "dc":
+            obs.append({**new, "row": f"dc-lr={DEFAULT_LR:g}"})
+    return {"ablation": {"observations": obs, "table": rec.get("table", []),
+                         "cells": rec.get("cells"), _gate.GRID_MARK: rec.get(_gate.GRID_MARK)}}
+
+
 def lr_of(row: str) -> float | None:
     return float(row.split("-lr=")[1]) if "-lr=" in row else None
 
@@ -248,5 +276,5 @@ def gap_traces(obs, row: str = "dc", key: str = "pi_pi_prime_l1") -> list[np.nda
             for o in obs if o["row"] == row and key in (o.get("curve") or {})]
 
 
-__all__ = ["book_verdicts", "CLAIMS", "at_default_lr", "early_return", "eval_curves", "gap_traces", "late_spread", "load",
+__all__ = ["RERUN", "book_verdicts", "CLAIMS", "at_default_lr", "from_rerun", "early_return", "eval_curves", "gap_traces", "late_spread", "load",
            "log_gap_ratio", "lr_lines", "observations", "rows_table", "verdicts", "worst_lr"]

@@ -415,6 +415,10 @@ def judge_claim(claim: Claim, obs, keys=None, measure=None, note: str = "", by=(
         members.append((k1[0] if len(by) == 1 else k1, np.subtract(va, vb),
                         start_level(obs, k1, claim.start, by), floor))
     entries = judge_family(claim, members, competence)
+    gate = competence_gate(claim, competence)
+    if not members and gate:   # a row the gate kept out of the grid: no pairs, and why
+        return Verdict(claim.name, claim.source, claim.rule, f"{NOT_JUDGED}: {gate}",
+                       evidence(claim, entries, note), claim.reason, entries, None)
     return Verdict(claim.name, claim.source, claim.rule, count(entries, unit),
                    evidence(claim, entries, note), claim.reason, entries,
                    judge_across(claim, members, competence) if across else None)

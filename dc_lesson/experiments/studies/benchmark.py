@@ -221,9 +221,12 @@ def observations(records) -> list[dict]:
         if "measures" in res:   # the expert row
             out.append({**_agg.observation(r, res["measures"]), "n_demos": 0})
         else:
+            dc = r["config"].get("dc") or {}   # DC's iterations per loop: the log's unit
             out.append(_agg.observation(r, res["final"], curve=res.get("curve"),
                                         start=res.get("start"),
-                                        **({"log": res["log"]} if "log" in res else {})))
+                                        **({"log": res["log"]} if "log" in res else {}),
+                                        **({"iterations": dc["iterations"]}
+                                           if "iterations" in dc else {})))
     return out
 
 
