@@ -433,7 +433,7 @@ else:
     said = (f"The planner alone returned {planner_level:.0f} over {rounds[0]['steps']} steps; "
             f"after {len(rounds)} rounds ({last['labels']:,} labels, the student's squared "
             f"error on them {last['mse']:.3f}) the mixed episodes returned "
-            f"{last['return']:.1f}, the planner acting at {last['beta']:.0%} of the steps. "
+            f"{last['return']:.1f}, the planner acting at {last['beta']:.2%} of the steps. "
             f"The labels vary by {dagger['label_variance']:.3f} per action dimension, so the "
             f"student explains {1 - last['mse'] / dagger['label_variance']:.0%} of their "
             f"variance. Part of the rest is no function of the state at all (the planner's "
