@@ -115,8 +115,11 @@ def test_the_ablations_start_where_the_benchmarks_hopper_row_starts_and_control_
     for c in grid:
         assert c.config["bc"] == bench[(c.seed, "bc")].config["bc"]   # the very start
     steps = {c.variant: c.config["steps"] for c in grid if c.seed == 0}
-    assert steps["loops=1-long"] == steps["loops=4"] == 4 * steps["loops=1"]
+    total = {c.variant: c.config["curve_total"] for c in grid if c.seed == 0}
+    assert steps["loops=4"] == 4 * steps["loops=1"]      # the loops: fixed iterations each
     assert steps["loops=4"] <= lesson.benchmark_steps_for("hopper")
+    # the equal-budget control spends the 4 loops' interactions, their refits included
+    assert total["loops=4"] <= total["loops=1-long"] < total["loops=4"] + 2000
     default = next(c for c in grid if c.seed == 0 and c.variant == "")
     assert default.config["dc"] == bench[(0, "dc")].config["dc"]         # the benchmark's DC
     lrs = sorted(v for v in steps if v.startswith("lr="))
@@ -164,3 +167,26 @@ def test_the_ablation_claims_read_the_rerun_and_hold_gails_back():
     assert got[c.CONVERGES.name].verdict.startswith("reproduced")
     for claim in (c.FASTER, c.STABLE, c.LR_ROBUST):
         assert got[claim.name].verdict.startswith("not judged"), got[claim.name].verdict
+
+
+def test_dril_gets_the_same_pair_visits_and_dcs_curve_spans_its_whole_run(stored):
+    """A review found DRIL's ensemble fitted for a twentieth of the gradient steps on
+    subsampled demonstrations, and DC's checkpoints spread over fewer interactions than its
+    run (the refit rollouts), before any such cell ran."""
+    gate = {"gate": {"dc": {"passed": True, "reason": ""},
+                     "dril": {"passed": True, "reason": ""}}}
+    stored[bm.COMPETENCE] = gate
+    lesson = budget.get("lesson")
+    grid = [c for c in bm.cells_at(lesson) if c.learner in ("dril", "dc") and c.seed == 0]
+    plain = bm._competence.gated_config("dril", lesson, 300_000, 0, "hopper").ensemble_epochs
+    for c in grid:
+        if c.learner == "dril":
+            every = c.config["subsample_every"] or 1
+            assert c.config["dril"]["ensemble_epochs"] == plain * every
+        else:
+            cfg = bm.learner_config("dc", lesson, c.task, 0, c.config["subsample_every"])
+            assert c.config["curve_total"] == cfg.env_steps(c.task) > c.config["steps"] - 1
+    from dc_lesson.experiments.studies import ablations
+    cfgs = {c.variant: c.config for c in ablations.cells_at(lesson) if c.seed == 0}
+    assert cfgs["loops=1-long"]["curve_total"] >= cfgs["loops=4"]["curve_total"]
+    assert cfgs["loops=1-long"]["curve_total"] - cfgs["loops=4"]["curve_total"] < 2000

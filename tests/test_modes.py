@@ -79,3 +79,17 @@ def test_a_mixture_dc_cell_starts_from_the_matched_mixture(gate, monkeypatch):
     b, _ = modes.run_cell(dc_mix, ())
     assert a["match"] == b["match"] and a["match"]["tries"]
     assert "start" not in b and b["curve"]
+
+
+def test_an_unmatched_mixture_is_shown_and_paired_with_nothing():
+    def rec(row, variant, matched, value):
+        return {"cell": {"learner": row, "variant": variant, "task": "reacher2", "seed": 0,
+                         "n_demos": 18},
+                "config": {"demo_variant": None},
+                "result": {"final": {"mean": {"scaled_return": value}},
+                           **({"match": {"matched": matched}} if variant == "mix" else {})}}
+    obs = modes.observations([rec("bc", "mix", False, 0.3), rec("dc", "mix", False, 0.4),
+                              rec("bc", "full", None, 0.9)], "mean")
+    assert [o["row"] for o in obs] == ["bc-mix (unmatched)", "dc-mix (unmatched)", "bc-full"]
+    matched = modes.observations([rec("dc", "mix", True, 0.4)], "mean")
+    assert matched[0]["row"] == "dc-mix" and matched[0]["matched"]

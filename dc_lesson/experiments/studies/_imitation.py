@@ -68,20 +68,23 @@ def check_config(cell, current: dict) -> None:
                               f"changed since the cell was listed; list the study again")
 
 
-def train_from_start(cell, cfg, demos, start, evaluate, log=None) -> dict:
+def train_from_start(cell, cfg, demos, start, evaluate, log=None, checkpoint=None) -> dict:
     """One RL cell's run from its seed's ``start`` (the competence, benchmark and ablations
     studies): the learner's ``cfg`` for the cell's ``steps``, mean-action checkpoints
-    (``curve_points`` of ``curve_episodes`` episodes) and the start's and the final
+    (``curve_points`` of ``curve_episodes`` episodes over ``curve_total`` interactions,
+    else ``steps``) and the start's and the final
     policy's measures on ``eval_episodes`` episodes; ``evaluate(policy, n_episodes)``
-    scores a policy as the study does; ``log``: a function of the learner's training log
-    whose value the result keeps as ``log``."""
+    scores a policy as the study does (``checkpoint``, if given, at the checkpoints);
+    ``log``: a function of the learner's training log whose value the result keeps as
+    ``log``."""
     import time
     from dc_lesson import algorithms as _algorithms
     from dc_lesson import evaluation as _evaluation
     c = cell.config
     t0 = time.perf_counter()
-    curve = _evaluation.CheckpointCurve(lambda p: evaluate(p, c["curve_episodes"]),
-                                        c["steps"], c["curve_points"])
+    at = checkpoint or evaluate
+    curve = _evaluation.CheckpointCurve(lambda p: at(p, c["curve_episodes"]),
+                                        c.get("curve_total", c["steps"]), c["curve_points"])
     result = _algorithms.get(cell.learner).train(cell.task, demos, cfg,
                                                  policy=copy.deepcopy(start), progress=False,
                                                  callback=curve)

@@ -14,8 +14,9 @@ Cells, per seed of ``budget.benchmark_seeds`` (variant, what changes):
 * ``loops=L``, L = 1..4: L loops of a fixed number of iterations, the iterations one loop
   of the 4-loop run has at the budget, so loops=4 spends the budget and loops=1 a quarter
   (the paper's Figure 3: more loops, more interactions);
-* ``loops=1-long``: one loop as long as loops=4, the equal-budget control, on every seed:
-  does a loop's refit of the flow help, or only the interactions it comes with?
+* ``loops=1-long``: one loop with as many interactions as loops=4 spends, its refit
+  rollouts included (so a few more PPO iterations), the equal-budget control, on every
+  seed: does a loop's refit of the flow help, or only the interactions it comes with?
 * ``update=admm``: consensus ADMM (a dual variable per copy) in place of the paper's
   averaging, otherwise the default;
 * ``lr=X`` for the budget's ``lr_sweep_lrs`` other than DC's own 3e-4: DC's learning-rate
@@ -24,7 +25,8 @@ Cells, per seed of ``budget.benchmark_seeds`` (variant, what changes):
   variant pairs with it inside one aggregate).
 
 Every cell keeps its start's and final policy's measures, the mean-action checkpoint curve
-(``benchmark_curve_points`` of ``benchmark_curve_episodes`` episodes: Figure 5 and the
+(``benchmark_curve_points`` of ``benchmark_curve_episodes`` episodes, spread over the run's
+whole interactions, the refit rollouts included: Figure 5 and the
 stability question) and DC's per-iteration log (the pi-pi' distance before averaging, the
 parameter change, ADMM's residuals: Figure 6).  GAIL's learning-rate sweep is not rerun:
 GAIL failed the competence gate, so the book does not judge a claim with it.
@@ -57,7 +59,10 @@ def variants(b) -> dict[str, dict]:
     base = config(b, 0, {})
     per_loop = max(1, b.benchmark_steps_for(TASK) // (max(LOOPS) * base.batch_size))
     out = {f"loops={L}": {"loops": L, "iterations": per_loop} for L in LOOPS}
-    out["loops=1-long"] = {"loops": 1, "iterations": per_loop * max(LOOPS)}
+    # the equal-budget control: one loop with as many interactions as the 4 loops spend,
+    # their refit rollouts included (DCConfig.env_steps), so a few more PPO iterations
+    most = config(b, 0, out[f"loops={max(LOOPS)}"]).env_steps(TASK)
+    out["loops=1-long"] = {"loops": 1, "iterations": -(-most // base.batch_size)}
     out["update=admm"] = {"update": "admm"}
     out.update({f"lr={lr:g}": {"lr": float(lr)} for lr in b.lr_sweep_lrs
                 if abs(lr - base.lr) > 1e-12})
@@ -79,6 +84,7 @@ def cells_at(b) -> list[cells.Cell]:
                 {"budget": b.name, "protocol": d["protocol"], "subsample_every": d["every"],
                  "bc": _bench.bc_settings(n, d["every"], b), "overrides": overrides,
                  "steps": cfg.loops * cfg.iterations * cfg.batch_size,
+                 "curve_total": _bench.curve_total(cfg, TASK, 0),
                  "eval_episodes": b.benchmark_eval_episodes,
                  "eval_seed": protocol.expert_eval_seed(0),
                  "curve_points": b.benchmark_curve_points,
@@ -103,7 +109,8 @@ def run_cell(cell, needs):
     demos = _bench.demonstrations(cell.task, cell.n_demos, c["subsample_every"], cell.seed)
     start = _bench.cached_start(cell, c)
     return _im.train_from_start(cell, cfg, demos, start,
-                                _bench.evaluator(cell, c, reference), log=_curve), None
+                                _bench.evaluator(cell, c, reference), log=_curve,
+                                checkpoint=_bench.evaluator(cell, c, None)), None
 
 
 def aggregate(records, b) -> dict:
@@ -118,7 +125,8 @@ def aggregate(records, b) -> dict:
                                                              if o["row"] == "expert"]),
             "paired": [p for a, x in pairs for p in _agg.paired(rows, a, x)],
             "variants": variants(b), "design": _bench.design(TASK),
-            "steps": b.benchmark_steps_for(TASK),
+            "steps": {f"dc-{v}" if v else "dc": config(b, 0, o).env_steps(TASK)
+                      for v, o in variants(b).items()},
             "interval": "95% bootstrap (BCa) over seeds; paired: of the per-seed differences",
             _gate.GRID_MARK: _gate.RULES, "observations": obs}
 

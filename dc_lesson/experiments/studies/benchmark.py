@@ -29,12 +29,16 @@ passes.  The expert row (expert against expert) on every task.
 curves flattened in the competence study (``experiments.competence.budgets``: hopper and
 halfcheetah, the tasks it measures); every other task takes the longest of those, having no
 curve of its own (``test_benchmark_steps_follow_the_competence_curves`` holds the numbers
-to the rule).  The same for every learner.
+to the rule).  The same for every learner, up to whole batches (a PPO learner stops at
+its last whole update; DC's count adds the rollouts that refit P_w, ``DCConfig.env_steps``).
+A learner's parts counted in epochs get ``EVERY`` times the epochs on subsampled
+demonstrations (:data:`EPOCH_FIELDS`: DRIL's ensemble), as BC does.
 
 **Measures**: the final policy's mean action on ``benchmark_eval_episodes`` fresh episodes
 (scaled return, and EMD, KL and reverse KL of its states against the fresh expert reference);
 the start's, so each RL cell shows where it began; and ``benchmark_curve_points``
-checkpoints of ``benchmark_curve_episodes`` episodes each on every RL cell (Figure 11, and the
+checkpoints of ``benchmark_curve_episodes`` episodes each (scaled return only) on every RL
+cell, spread over the run's whole interactions (``curve_total``; Figure 11, and the
 stability question read on curves).
 
 The aggregate carries ``competence.GRID_MARK``: the verdicts judge a gated learner only on it.
@@ -42,6 +46,7 @@ The aggregate carries ``competence.GRID_MARK``: the verdicts judge a gated learn
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import time
 
@@ -121,8 +126,29 @@ def bc_settings(n_demos: int, every: int | None, b) -> dict:
     return _headroom.bc_settings(n_demos, scale * b.bc_max_epochs)
 
 
-def learner_config(learner: str, b, task: str, seed: int):
-    return _competence.gated_config(learner, b, b.benchmark_steps_for(task), seed, task)
+# A learner's parts counted in epochs see a twentieth of the pairs on subsampled
+# demonstrations, so they get EVERY times the epochs, the same pair visits (as BC's cap,
+# module docstring): DRIL's ensemble (50 epochs: 150 gradient steps per member at 11
+# subsampled hopper demonstrations against about 800 in the gate's runs on 4 whole ones;
+# found by a review before any DRIL cell ran).  DC counts its BC and flow work in steps.
+EPOCH_FIELDS = {"dril": ("ensemble_epochs",)}
+
+
+def learner_config(learner: str, b, task: str, seed: int, every: int | None = None):
+    """The learner as the gate ran it at the task's interactions; with ``every`` (subsampled
+    demonstrations) its :data:`EPOCH_FIELDS` scaled by ``every``."""
+    cfg = _competence.gated_config(learner, b, b.benchmark_steps_for(task), seed, task)
+    if every:
+        cfg = dataclasses.replace(cfg, **{f: getattr(cfg, f) * every
+                                          for f in EPOCH_FIELDS.get(learner, ())})
+    return cfg
+
+
+def curve_total(cfg, task: str, steps: int) -> int:
+    """The interactions a run's checkpoint marks are spread over: DC's whole run with the
+    rollouts that refit P_w (``DCConfig.env_steps``, which its step counter counts), else
+    the cell's ``steps``."""
+    return int(cfg.env_steps(task)) if hasattr(cfg, "env_steps") else int(steps)
 
 
 def cells_at(b) -> list[cells.Cell]:
@@ -140,8 +166,11 @@ def cells_at(b) -> list[cells.Cell]:
                               "eval_seed": protocol.expert_eval_seed(0),
                               "demos": cells.demos_identity(task)}
                     if learner != "bc":
-                        cfg = json.loads(learner_config(learner, b, task, seed).to_json())
+                        made = learner_config(learner, b, task, seed, d["every"])
+                        cfg = json.loads(made.to_json())
                         config.update({"steps": b.benchmark_steps_for(task),
+                                       "curve_total": curve_total(
+                                           made, task, b.benchmark_steps_for(task)),
                                        "curve_points": b.benchmark_curve_points,
                                        "curve_episodes": b.benchmark_curve_episodes,
                                        learner: _im.without_seed(cfg)})
@@ -153,7 +182,6 @@ def cells_at(b) -> list[cells.Cell]:
 
 
 def _with_seeds(b):
-    import dataclasses
     return dataclasses.replace(b, sweep_seeds_other=b.benchmark_seeds,
                                sweep_seeds_reacher=b.benchmark_seeds)
 
@@ -184,11 +212,12 @@ def cached_start(cell, c: dict):
 
 def evaluator(cell, c: dict, reference):
     """``evaluate(policy, n_episodes)``: the mean action on the cell's fresh episodes,
-    scaled return and divergences against ``reference``."""
+    scaled return and divergences against ``reference`` (None: the scaled return alone,
+    all a checkpoint curve keeps)."""
     def evaluate(policy, n_episodes):
         return _evaluation.evaluate_policy(cell.task, policy, reference,
                                            n_episodes=n_episodes, seed=c["eval_seed"],
-                                           divergences=True)
+                                           divergences=reference is not None)
     return evaluate
 
 
@@ -204,10 +233,11 @@ def run_cell(cell, needs):
     if cell.learner == "bc":
         return {"final": protocol.measures_of(evaluate(start, c["eval_episodes"])),
                 "train_seconds": time.perf_counter() - t0}, None
-    cfg = learner_config(cell.learner, b, cell.task, cell.seed)
+    cfg = learner_config(cell.learner, b, cell.task, cell.seed, c["subsample_every"])
     _im.check_config(cell, json.loads(cfg.to_json()))
     demos = demonstrations(cell.task, cell.n_demos, c["subsample_every"], cell.seed)
-    return _im.train_from_start(cell, cfg, demos, start, evaluate), None
+    return _im.train_from_start(cell, cfg, demos, start, evaluate,
+                                checkpoint=evaluator(cell, c, None)), None
 
 
 def observations(records) -> list[dict]:
@@ -251,6 +281,6 @@ STUDY = cells.Study(NAME, "the benchmark with headroom (issue 41): Table III, Fi
                     run_cell=lambda c, n: _common.run_expert_or(c, n, run_cell),
                     aggregate=aggregate, result_file="benchmark.json")
 
-__all__ = ["FALLBACK_COUNTS", "NAME", "RL", "STUDY", "TASKS", "bc_settings", "cached_start",
+__all__ = ["EPOCH_FIELDS", "curve_total", "FALLBACK_COUNTS", "NAME", "RL", "STUDY", "TASKS", "bc_settings", "cached_start",
            "cells_at", "demonstrations", "design", "evaluator", "observations", "learner_config", "learners", "listed", "run_cell",
            "start_policy"]

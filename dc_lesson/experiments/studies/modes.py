@@ -5,7 +5,8 @@ and which learner collapses on the hidden-coin demonstrations?  The first grid (
 old -> new verdict table.
 
 Cells: per task of ``reacher2, reacher4, halfcheetah2``, seed of ``range(modes_seeds)`` (10
-on every task: halfcheetah2's first grid had 5, too few to tell its rows apart) and row of
+on every task: halfcheetah2's first grid had 5, too few to tell its rows apart; the mixture
+rows and their control ``bc-full-coin`` on the first ``table1_mixture_seeds``, 5) and row of
 :data:`ROWS`, on the first ``il_demos`` (18) whole demonstrations (the realizable experts',
 or the hidden-coin experts' for the ``*-coin`` rows); the RL rows at the benchmark's
 interactions (``budget.benchmark_steps_for``: no competence curve measures these tasks, so
@@ -38,11 +39,13 @@ seed's plain BC (``bc-full``'s training, the same demonstrations) is scored with
 action on :data:`MATCH_EPISODES` episodes from :data:`MATCH_SEED` (no evaluation or
 demonstration episode shares their starts); the mixture is trained for ``bc_max_epochs``
 epochs, then twice and four times as many (each a fresh, deterministic run), and the first
-that scores within :data:`MATCH_TOLERANCE` of plain BC on those episodes is kept, else the
-longest; the cell records the epochs, both scores and whether it matched.  The mixture DC is
-judged only on seeds whose start matched: a weaker start would make any comparison with the
-Gaussian DC a comparison of starts (the first grid's mixture BC was weaker than plain BC on
-every task).  The mixture's component spreads are set to the gate's exploration noise
+that scores at least plain BC's score less :data:`MATCH_TOLERANCE` on those episodes (no
+weaker: a mixture above plain BC is no handicap) is kept, else the longest; the cell
+records the epochs, both scores and whether it matched.  The mixture rows are judged only
+on seeds whose start matched: an unmatched seed's mixture rows are named ``ROW
+(unmatched)`` in the aggregate (:func:`observations`), shown in the table and paired with
+nothing, since a weaker start would make any comparison with the Gaussian rows a
+comparison of starts (the first grid's mixture BC was weaker than plain BC on every task).  The mixture's component spreads are set to the gate's exploration noise
 (``algorithms.base.START_LOG_STD``), as every other start's.
 
 Not run: GAIL and its variants and the other baselines that failed the competence gate
@@ -182,7 +185,8 @@ def matched_mixture(task: str, demos, seed: int, b) -> tuple:
 
 def _start(row: Row, task, demos, seed, b, c):
     """The row's start and, for a mixture, its match record (cached per worker)."""
-    key = (NAME, task, c["demo_variant"], row.start, seed, b.bc_max_epochs)
+    key = (NAME, task, len(demos.trajectories), c["demo_variant"], row.start, seed,
+           b.bc_max_epochs)
     if row.start == "mix":
         policy, record = _im.cached_start(key, lambda: matched_mixture(task, demos, seed, b))
         return policy, record
@@ -195,7 +199,11 @@ def _start(row: Row, task, demos, seed, b, c):
 
 def run_cell(cell, needs):
     c = cell.config
-    row = rows()[cell.row]
+    row = rows().get(cell.row)
+    if row is None:
+        raise cells.CellError(f"{cell.study}/{cell.task}/{cell.name}: row {cell.row} is no "
+                              f"longer in the grid (the competence gate changed since the "
+                              f"cell was listed); list the study again")
     b = _im.sized_budget(c)
     cfg = learner_config(row, b, cell.task, cell.seed)
     _im.check_config(cell, json.loads(cfg.to_json()))
@@ -245,9 +253,12 @@ def observations(records, actions: str) -> list[dict]:
                 seen.add(key)
                 obs.append(_agg.observation(r, res["start"][actions], row=start))
         extra = {"curve": res.get("curve")}
+        row = None
         if "match" in res:
             extra["matched"] = res["match"]["matched"]
-        obs.append(_agg.observation(r, res["final"][actions], **extra))
+            if not extra["matched"]:   # shown, paired with nothing (module docstring)
+                row = f"{cell['learner']}-{cell['variant']} (unmatched)"
+        obs.append(_agg.observation(r, res["final"][actions], row=row, **extra))
     return obs
 
 
@@ -265,8 +276,8 @@ def aggregate(records, b) -> dict:
     pairs = PAIRS + tuple(("dc", x) for x in table if table[x].stage == 3) + tuple(
         (x, "bc") for x in table if table[x].stage == 3)
     out = {"interval": "95% bootstrap (BCa) over seeds; paired: of the per-seed differences",
-           "protocol": _im.protocol_config(b), "rows": {k: dataclasses.asdict(v)
-                                                        for k, v in table.items()},
+           "protocol": {k: v for k, v in _im.protocol_config(b).items() if k != "steps"},
+           "rows": {k: dataclasses.asdict(v) for k, v in table.items()},
            "learners": _bench.learners(), "steps": {t: b.benchmark_steps_for(t) for t in TASKS},
            "match": {"seed": MATCH_SEED, "episodes": MATCH_EPISODES,
                      "tolerance": MATCH_TOLERANCE, "scales": list(MATCH_SCALES)},
