@@ -61,7 +61,6 @@ import json
 import time
 
 from dc_lesson import algorithms as _algorithms
-from dc_lesson import budget as _budget
 from dc_lesson import evaluation as _evaluation
 from dc_lesson.algorithms import base as _base
 from dc_lesson.algorithms import bc as _bc
