@@ -782,9 +782,10 @@ plt.show()
 # %% [markdown]
 # ## How many loops, which learning rate? (the paper's Figures 3 and 4)
 #
-# The paper runs its ablations on Hopper with 11 demonstrations, and so do we, now that our
-# hopper's expert hops: chapter 6 has them, five seeds each, with the loop count compared at
-# equal interactions too, DC against GAIL across learning rates, and return against
+# The paper runs its ablations on Hopper with 11 demonstrations, and so do we: chapter 6 has
+# them, five seeds each, every run from the benchmark's hopper start (BC on 11 demonstrations
+# subsampled as GAIL's protocol does, so it leaves room to improve), the loop count compared
+# at equal interactions too, DC's learning rates, consensus ADMM, and return against
 # interactions from deterministic evaluations (`dc_lesson.experiments.ablations`). Their
 # verdicts, as they stand in the stored cells:
 

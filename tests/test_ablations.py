@@ -175,3 +175,43 @@ def test_the_worker_cache_keeps_a_few_seeds_and_drops_the_oldest():
     assert ("hopper", 0) not in cache and ("hopper", _imitation._STARTS_KEPT + 2) in cache
     assert _imitation.worker_cache(("test",)) is cache
     _imitation._CACHES.clear()
+
+
+def _rerun_record(per_rate: dict, seeds=range(5)):
+    """A stored ``ablations.json`` as ``studies.ablations`` writes it: DC's default row
+    ``dc`` (with each seed's start) and one ``dc-lr=X`` row per other rate."""
+    obs = []
+    for s in seeds:
+        start = {"scaled_return": 0.5}
+        obs.append({"row": "dc", "task": "hopper", "n_demos": 11, "seed": s,
+                    "scaled_return": per_rate[3e-4][s], "start": start,
+                    "curve": [{"steps": 1000, "scaled_return": 0.6}], "log": {}})
+        for lr, v in per_rate.items():
+            if lr != 3e-4:
+                obs.append({"row": f"dc-lr={lr:g}", "task": "hopper", "n_demos": 11,
+                            "seed": s, "scaled_return": v[s], "start": start})
+    return {"observations": obs, "table": [{"row": "dc", "task": "hopper"}],
+            "cells": {"n": 1, "of": 1}}
+
+
+def test_dc_works_in_a_wide_range_of_rates_reads_its_worst_rate_against_its_default():
+    wide = {c.name: c for c in ablations.CLAIMS}[claims.LR_WIDE.name]
+    same = {lr: [0.9 + 0.001 * s for s in range(5)] for lr in (1e-4, 3e-4, 1e-3)}
+    got = {v.claim: v for v in ablations.verdicts(ablations.from_rerun(_rerun_record(same)),
+                                                  competence=None)}
+    assert got[wide.name].verdict == "equal within 0.05"
+    crash = {**same, 3e-3: [0.1, 0.05, 0.2, 0.0, 0.15]}     # one rate that falls
+    got = {v.claim: v for v in ablations.verdicts(ablations.from_rerun(_rerun_record(crash)),
+                                                  competence=None)}
+    assert got[wide.name].verdict == "contradicted"
+    assert "dc-worst - dc" in got[wide.name].evidence
+
+
+def test_the_rerun_is_read_with_its_default_rate_as_a_row_of_the_sweep():
+    rec = ablations.from_rerun(_rerun_record({3e-4: [1.0] * 5, 1e-3: [0.5] * 5}))
+    rows = {o["row"] for o in rec["ablation"]["observations"]}
+    assert {"bc", "dc", "dc-lr=0.0003", "dc-lr=0.001"} <= rows
+    assert sum(o["row"] == "bc" for o in rec["ablation"]["observations"]) == 5   # once a seed
+    assert any(r["row"] == "dc-lr=0.0003" for r in rec["ablation"]["table"])
+    with pytest.raises(ValueError, match="which="):
+        ablations.load("newest")

@@ -36,10 +36,24 @@ FAILING_LR = 1e-3        # the paper: GAIL "tends to fail/crash" at this rate an
 EARLY = 0.5              # Figure 5: the first half of the interactions
 LOOP_ROWS = ("dc-loops=1", "dc-loops=2", "dc-loops=3", "dc-loops=4", "dc-loops=1-long")
 CLAIMS = _claims.ABLATIONS
+RERUN = "ablations.json"   # the rerun on the benchmark's hopper start (issue 41, item 5)
 
 
-def load() -> dict:
-    """The three aggregates that exist in the cell format ({} for one not yet aggregated)."""
+def load(which: str = "rerun") -> dict:
+    """The ablations' aggregates: ``"rerun"`` (the default) the rerun on the benchmark's
+    hopper start (``ablations.json``, :func:`from_rerun`) once it is stored, else the first
+    three studies; ``"first"`` the first three studies (``dc_ablation``, ``dc_lr``,
+    ``gail_lr``: chapter 02 still draws GAIL's learning-rate sweep from them).  ``{}`` when
+    none is stored in the cell format."""
+    if which not in ("rerun", "first"):
+        raise ValueError(f"ablations.load: which={which!r}; use 'rerun' or 'first'")
+    if which == "rerun":
+        try:
+            rec = read_result(RERUN)
+        except FileNotFoundError:
+            rec = None
+        if rec and rec.get("observations"):
+            return from_rerun(rec)
     out = {}
     for key, name in FILES.items():
         try:
@@ -66,9 +80,6 @@ def observations(recs: dict) -> list[dict]:
     return obs
 
 
-RERUN = "ablations.json"   # the rerun on the benchmark's hopper start (issue 41, item 5)
-
-
 def from_rerun(rec: dict) -> dict:
     """The ``ablations`` aggregate (the rerun on the benchmark's start: ``studies.ablations``)
     in the form :func:`verdicts` and the figures read, as ``{"ablation": ...}``: each cell's
@@ -90,8 +101,12 @@ def from_rerun(rec: dict) -> dict:
         obs.append(new)
         if o["row"] == "dc":
             obs.append({**new, "row": f"dc-lr={DEFAULT_LR:g}"})
-    return {"ablation": {"observations": obs, "table": rec.get("table", []),
-                         "cells": rec.get("cells"), _gate.GRID_MARK: rec.get(_gate.GRID_MARK)}}
+    table = list(rec.get("table", []))
+    table += [{**r, "row": f"dc-lr={DEFAULT_LR:g}"} for r in table if r["row"] == "dc"]
+    keep = ("benchmark", "budget", "seeds", "complete", "cells", "revision", "time",
+            "command", "steps", "design", "paired", "variants", _gate.GRID_MARK)
+    return {"ablation": {**{k: rec[k] for k in keep if k in rec}, "observations": obs,
+                         "table": table, "rerun": True}}
 
 
 def lr_of(row: str) -> float | None:
@@ -183,6 +198,11 @@ def verdicts(recs: dict | None = None, competence: dict | str | None = "stored")
     out = [judge(claim, obs) for claim in (c.LOOPS, c.EQUAL_BUDGET, c.LONG_LOOP)]
     starts = [o for o in obs if o["row"] == "bc"]    # the start's level for the gate
     out.append(judge(c.LR_ROBUST, worst_lr(obs, "dc") + worst_lr(obs, "gail") + starts))
+    default = [o for o in obs if o["row"] == f"dc-lr={DEFAULT_LR:g}"]
+    worst = {o["seed"]: o["worst_lr_return"] for o in worst_lr(obs, "dc")}
+    out.append(judge(c.LR_WIDE, starts + [{**o, "row": "dc"} for o in default] + [
+        {**o, "row": "dc-worst", "scaled_return": worst[o["seed"]]} for o in default
+        if o["seed"] in worst]))
     default = at_default_lr(obs) + starts
     out.append(judge(c.FASTER, default, measure=early_return))
     out.append(judge(c.STABLE, default, measure=late_spread))
@@ -250,9 +270,10 @@ def lr_lines(recs: dict) -> dict:
     95% t interval over seeds, :func:`report.band`)."""
     from dc_lesson.experiments.report import band
     out = {}
-    for key, learner in (("dc_lr", "dc"), ("gail_lr", "gail")):
-        rows = sorted((lr_of(r["row"]), r) for r in recs.get(key, {}).get("table", [])
-                      if r["row"].startswith(learner + "-lr="))
+    tables = [r for rec in recs.values() for r in rec.get("table", [])]
+    for learner in ("dc", "gail"):
+        rows = sorted(((lr_of(r["row"]), r) for r in tables
+                       if r["row"].startswith(learner + "-lr=")), key=lambda x: x[0])
         if rows:
             out[learner] = tuple(np.array(v, float) for v in zip(*[
                 (lr, *band(r, "scaled_return")) for lr, r in rows]))
