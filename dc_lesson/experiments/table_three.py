@@ -192,7 +192,8 @@ def rank_agreement(rec: dict, task: str, n_demos: int) -> dict:
 # (:data:`claims.TABLE_THREE`) and judged here, each claim one Holm family over its (task,
 # demonstration count) pairs.
 CLAIMS = _claims.TABLE_THREE
-FEWEST_ONLY = (_claims.DC_BEATS_DRIL_FEW, _claims.DC_FASTER, _claims.DC_STABLE)
+FEWEST_ONLY = (_claims.DC_BEATS_DRIL_FEW, _claims.DC_FASTER, _claims.DC_STABLE,
+               _claims.DC_STABLE_DRIL)
 
 
 def _lowest_other(obs) -> list[dict]:

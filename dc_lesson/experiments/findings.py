@@ -1,0 +1,100 @@
+"""What this book found about DC: the paper's three claims, answered from the stored verdicts.
+
+The paper's contributions (its Sec. I) are three: DC *performs* comparably or better than the
+imitation-learning baselines, its ADMM-based training is *stable* (more loops help, the
+update converges, it works in a wide range of learning rates) and it *keeps the expert's
+modes* where adversarial imitation collapses.  Each is a :class:`Question` here with the
+claims of :mod:`claims` that test it; :func:`answer` renders one question's answer from the
+verdicts of those claims, by fixed rules and no word of its own:
+
+* each claim is one sentence: its name, the rule's word (as :func:`verdicts.count` put it:
+  per task, or per task and count) and the grid it rests on;
+* the question's lead sentence counts the claims by their word: how many reproduced, how
+  many contradicted, how many came out equal within the bound, inconclusive, mixed (a claim
+  whose tasks gave different words), or not judged;
+* a grid still accumulating is named as such in the lead, so a reader sees when an answer
+  is provisional (:func:`provisional`).
+
+A question is never given one word of its own ("partly", "mostly"): the answer is its
+claims' words, counted.  ``tests/test_findings.py`` checks the rules on constructed verdicts.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+from dc_lesson.experiments import claims as C
+from dc_lesson.experiments import verdicts as V
+
+MIXED = "mixed"     # a claim whose tasks (or counts) gave different words
+
+
+@dataclasses.dataclass(frozen=True)
+class Question:
+    key: str
+    question: str
+    claims: tuple       # of claims.Claim, in the order the answer lists them
+
+
+QUESTIONS = (
+    Question("performance", "Does DC perform as well as or better than the baselines?",
+             (C.DC_BEATS_BC, C.COMPARABLE_BC, C.DC_BEATS_DRIL_FEW, C.COMPARABLE)),
+    Question("stability", "Is DC's training stable, and does its update converge?",
+             (C.LOOPS, C.EQUAL_BUDGET, C.LR_WIDE, C.CONVERGES, C.DC_STABLE_DRIL, C.STABLE,
+              C.DC_STABLE)),
+    Question("modes", "Does DC keep the expert's modes where GAIL collapses?",
+             (C.DC_KEEPS_MODES, C.GAIL_COLLAPSES, C.LOWEST_DIVERGENCE, C.HIGHER_RETURN)),
+)
+
+
+def word_of(v: V.Verdict) -> str:
+    """A claim's one word: the rule's word when every judged task agrees (or the claim has
+    one member), :data:`MIXED` when they differ, not judged when no member was judged."""
+    members = [V.kind(e.word) for e in v.per_task]
+    judged = [w for w in members if w != V.NOT_JUDGED]
+    if not members:
+        return V.kind(v.verdict)
+    if not judged:
+        return V.NOT_JUDGED
+    return judged[0] if len(set(judged)) == 1 else MIXED
+
+
+def provisional(sources: dict) -> list[str]:
+    """The grids still accumulating: ``sources`` maps a grid's name to its aggregate (or
+    ``None`` when it has not been made), each with ``complete`` and ``cells``."""
+    out = []
+    for name, rec in sources.items():
+        if rec is None:
+            out.append(f"{name} (not aggregated yet)")
+        elif not rec.get("complete"):
+            c = rec.get("cells") or {}
+            out.append(f"{name} ({c.get('n', '?')} of {c.get('of', '?')} cells)")
+    return out
+
+
+def answer(q: Question, verdicts: list, sources: dict | None = None) -> dict:
+    """``{"question", "lead", "lines", "words"}``: :attr:`Question.question`, the lead
+    sentence (module docstring), one Markdown line per claim of ``q`` found in
+    ``verdicts`` (a claim not found says "not run yet"), and ``{claim: word}``."""
+    by = {v.claim: v for v in verdicts}
+    words, lines = {}, []
+    for c in q.claims:
+        v = by.get(c.name)
+        if v is None:
+            words[c.name] = "not run yet"
+            lines.append(f"* {c.name} ({c.source}): not run yet.")
+            continue
+        words[c.name] = word_of(v)
+        lines.append(f"* {c.name} ({c.source}): **{v.verdict}**.")
+    order = (V.REPRODUCED, V.CONTRADICTED, V.EQUAL, V.INCONCLUSIVE, MIXED, V.NOT_JUDGED,
+             "not run yet")
+    said = [f"{sum(w == k for w in words.values())} {k}" for k in order
+            if any(w == k for w in words.values())]
+    lead = f"Of its {len(q.claims)} claims: " + ", ".join(said) + "."
+    late = provisional(sources or {})
+    if late:
+        lead += " Provisional: it rests on grids still accumulating, " + "; ".join(late) + "."
+    return {"question": q.question, "lead": lead, "lines": lines, "words": words}
+
+
+__all__ = ["MIXED", "QUESTIONS", "Question", "answer", "provisional", "word_of"]
