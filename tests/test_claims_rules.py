@@ -168,3 +168,14 @@ def test_the_hidden_coin_collapse_is_gail_coin_against_its_own_start():
     assert claims.hidden_coin_collapse({"mean": {"observations": obs[:6]}}) is None
     v = claims.hidden_coin_collapse({"mean": {"observations": obs}})
     assert v.verdict == "reproduced" and "gail-coin - bc-coin" in v.evidence
+
+
+def test_the_mode_claims_read_the_rerun_only_once_it_is_complete(monkeypatch):
+    from dc_lesson.experiments import claims as _c
+    stored = {"modes.json": {"complete": False}}
+    monkeypatch.setattr(_c, "_load", lambda name: stored.get(name))
+    assert _c.table1_result() == "table1.json"          # half-run: the first grid answers
+    stored["modes.json"]["complete"] = True
+    assert _c.table1_result() == "modes.json"
+    stored.clear()
+    assert _c.table1_result() == "table1.json"          # never made

@@ -226,10 +226,24 @@ def _load(name):
         return None
 
 
+MODES_RESULT = "modes.json"     # Table I rerun under the competence gate (issue 41)
+
+
+def table1_result() -> str:
+    """The Table I aggregate the book's mode claims read: the rerun under the gate
+    (``modes.json``, ``studies.modes``) once it is stored complete, else the first grid
+    (``table1.json``), so a verdict never rests on a half-run grid without saying so (chapter
+    04 shows the rerun's partial state beside the first grid's answer)."""
+    rec = _load(MODES_RESULT)
+    return MODES_RESULT if rec and rec.get("complete") else "table1.json"
+
+
 def table1_observations(actions: str = "mean") -> tuple[list, dict, str] | None:
-    """``(observations, reference mode shares, source)`` of the ``table1`` aggregate (the
-    realizable experts, 10 seeds on the reachers, either evaluation), None until it exists."""
-    rec = _load("table1.json")
+    """``(observations, reference mode shares, source)`` of the Table I aggregate
+    (:func:`table1_result`: the realizable experts, either evaluation), None until it
+    exists."""
+    name = table1_result()
+    rec = _load(name)
     if not rec or actions not in rec:
         return None
     from dc_lesson.experiments.studies import _imitation
@@ -237,7 +251,8 @@ def table1_observations(actions: str = "mean") -> tuple[list, dict, str] | None:
     tasks = [{"cell": {"task": t}} for t in dict.fromkeys(o["task"] for o in obs)]
     c = rec["cells"]
     return (obs, _imitation.reference_shares(tasks),
-            f"table1: {c['n']} of {c.get('of', c['n'])} cells, {actions} action")
+            f"{name.removesuffix('.json')}: {c['n']} of {c.get('of', c['n'])} cells, "
+            f"{actions} action")
 
 
 def _mode_evidence(obs, task_rows, reference_shares, n_episodes: int) -> str:
@@ -309,7 +324,7 @@ def verdicts(obs=None, reference_shares=None, source: str = "", eval_episodes: i
         t1 = table1_observations(actions)
         obs, reference_shares, source = t1 if t1 is not None else ([], {}, "")
         if t1 is not None:
-            rec = _load("table1.json")
+            rec = _load(table1_result())
             eval_episodes, floor = rec["protocol"]["eval_episodes"], floors(rec, actions)
     reference_shares = reference_shares or {}
     multi = list(dict.fromkeys(o["task"] for o in obs))
@@ -329,7 +344,7 @@ def verdicts(obs=None, reference_shares=None, source: str = "", eval_episodes: i
     return out
 
 
-__all__ = ["ABLATIONS", "DC_STABLE_DRIL", "LR_WIDE", "BC_GROWS", "BC_IMPROVES", "CLAIMS", "COLLAPSE_SHARE", "COMPARABLE", "competence_of",
+__all__ = ["ABLATIONS", "DC_STABLE_DRIL", "MODES_RESULT", "table1_result", "LR_WIDE", "BC_GROWS", "BC_IMPROVES", "CLAIMS", "COLLAPSE_SHARE", "COMPARABLE", "competence_of",
            "COMPARABLE_BC", "CONVERGES", "DC_BEATS_BC", "DC_BEATS_DRIL_FEW", "DC_FASTER",
            "DC_KEEPS_MODES", "DC_STABLE", "EQUAL_BUDGET", "FASTER", "GAIL_COLLAPSES", "GAIL_LR_START",
            "GPRIL_LOWEST", "HIGHER_RETURN", "LONG_LOOP", "LOOPS", "LOWEST_DIVERGENCE",
