@@ -594,7 +594,9 @@ if t1 is not None:
 #   4 and 5) are "not judged" below, and chapter 2 keeps the first sweep as a picture of
 #   that GAIL, not a verdict;
 # * every run evaluates its policy's mean action at checkpoints spread over its whole run
-#   (Figure 5: deterministic, so exploration noise flatters nobody), and DC logs, every
+#   (Figure 5: deterministic, so exploration noise flatters nobody; beside DC, DRIL's
+#   curves from the same starts in the benchmark's hopper cells, the competent baseline in
+#   GAIL's place, as they come in), and DC logs, every
 #   iteration, the L1 distance between $\pi$ and $\pi'$ before they are averaged (Figure 6)
 #   and, under consensus ADMM, the primal and dual residuals.
 
@@ -693,6 +695,18 @@ if abl:
             ax.plot(steps, mean, color=colour, label=f"{label} ({len(values)} seeds)")
             ax.fill_between(steps, np.maximum(lo, -0.1), np.minimum(hi, 1.1), color=colour,
                             alpha=0.12)
+    # DRIL, the competent baseline, from the same starts in the benchmark's hopper cells
+    n_abl = abl["ablation"].get("design", {}).get("counts", [None])[0]
+    dril = [o for o in (t3 or {}).get("observations", []) if o["row"] == "dril"
+            and (o["task"], o["n_demos"]) == (ablations.TASK, n_abl) and o.get("curve")]
+    c = ablations.eval_curves([{**o, "eval_curve": o["curve"]} for o in dril], "dril")
+    if c is not None and len(c[1]) > 1:
+        steps, values = c
+        mean, lo, hi = np.array([_report.t_interval(values[:, j])
+                                 for j in range(values.shape[1])]).T
+        ax.plot(steps, mean, color=COLOURS["dril"], label=f"DRIL, benchmark ({len(values)} seeds)")
+        ax.fill_between(steps, np.maximum(lo, -0.1), np.minimum(hi, 1.1), color=COLOURS["dril"],
+                        alpha=0.12)
     ax.axhline(1, color="k", lw=0.8, ls=":", label="expert")
     if abl_start:
         ax.scatter([0], [np.mean(abl_start)], marker="s", color=COLOURS["bc"], zorder=3,
