@@ -178,7 +178,15 @@ def test_the_ledger_counts_each_cell_once_and_sums_the_done_cells_wall_time(unin
     assert sum(r["cells"] for r in rows.values()) == len(unique)
     assert all(r["left"] == r["cells"] - r["done"] for r in rows.values())
     text = sweep.format_ledger(list(rows.values()), TINY, 2)
-    assert "on 2 worker(s)" in text and text.count("\n") == len(rows) + 3
+    assert "on 2 worker(s)" in text and text.count("\n") == len(rows) + 4
+    # the final grid's total leaves out exactly the superseded first grids
+    assert {r["study"] for r in rows.values() if r["superseded"]} == set(studies.SUPERSEDED)
+    fake = [{"study": "new", "cells": 1, "done": 1, "cpu_done": 100.0, "left": 0,
+             "cpu_left": 0.0, "unknown": 0, "superseded": False},
+            {"study": "old", "cells": 1, "done": 1, "cpu_done": 7000.0, "left": 0,
+             "cpu_left": 0.0, "unknown": 0, "superseded": True}]
+    last = sweep.format_ledger(fake, TINY, 2).splitlines()[-1]
+    assert "(old: kept as the record): 100 s of CPU done" in last and "100 s in all" in last
 
 
 def test_with_a_deadline_only_the_cells_that_fit_start_in_order_and_the_rest_wait():

@@ -261,6 +261,7 @@ def ledger(b: _budget.Budget, root=None, workers: int = 2) -> list[dict]:
                        for c in done)
         est = [estimate(c, costs, b.name, rates) for c in grid if not _cells.is_done(c, root)]
         out.append({"study": name, "cells": len(grid), "done": len(done),
+                    "superseded": name in studies.SUPERSEDED,
                     "cpu_done": cpu_done, "left": len(est),
                     "cpu_left": sum(e for e in est if e is not None),
                     "unknown": sum(e is None for e in est)})
@@ -281,6 +282,14 @@ def format_ledger(rows: list[dict], b: _budget.Budget, workers: int) -> str:
                  f"{sum(r['left'] for r in rows):>7}{_fmt_s(left):>11}")
     lines.append(f"on {workers} worker(s): {_fmt_s(done / workers)} of wall time spent, about "
                  f"{_fmt_s(left / workers)} left, {_fmt_s((done + left) / workers)} in all")
+    final = [r for r in rows if not r.get("superseded")]
+    if len(final) < len(rows):
+        f_done = sum(r["cpu_done"] for r in final)
+        f_left = sum(r["cpu_left"] for r in final)
+        old = [r["study"] for r in rows if r.get("superseded")]
+        lines.append(f"the final grid, without the first grids it superseded ({', '.join(old)}: "
+                     f"kept as the record): {_fmt_s(f_done)} of CPU done, about "
+                     f"{_fmt_s(f_left)} left, {_fmt_s(f_done + f_left)} in all")
     return "\n".join(lines)
 
 

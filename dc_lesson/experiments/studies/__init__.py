@@ -38,6 +38,13 @@ NAMES = ("reference", "bc_demos", "bc_drift", "gail_lr", "dc_ablation", "dc_lr",
 # reference first: the others read it), and its ``--dry-run`` ledgers them.
 BOOK = NAMES
 
+# The first grids, run before the competence gate (issue 38) and kept, complete, as the record
+# of what the book first said (chapter 06's "first grid", chapter 02's GAIL sweep): study ->
+# the study that asks its question again.  The ledger totals the final grid without them.
+SUPERSEDED = {"gail_lr": "ablations (GAIL failed the gate: not rerun)",
+              "dc_ablation": "ablations", "dc_lr": "ablations", "table1": "modes",
+              "table3": "benchmark"}
+
 
 class UnknownStudyError(ValueError):
     """A study name that is not in :data:`NAMES`."""
@@ -51,4 +58,4 @@ def get(name: str) -> Study:
     return importlib.import_module(f"dc_lesson.experiments.studies.{key}").STUDY
 
 
-__all__ = ["BOOK", "NAMES", "UnknownStudyError", "get"]
+__all__ = ["BOOK", "NAMES", "SUPERSEDED", "UnknownStudyError", "get"]
