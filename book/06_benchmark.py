@@ -25,16 +25,15 @@
 # resumable grid of cells, the **benchmark** (`dc-lesson sweep benchmark`), and judges the
 # paper's claims about them by rules declared in advance.
 #
-# The benchmark is the second grid the book ran. The first (`dc-lesson sweep table3`, 658
-# cells, the end of this chapter) gave every learner 100,000 interactions on whole,
-# noise-free demonstrations, before any learner had shown it could learn: BC was already at
-# the expert on cartpole and hopper, and at the random level on the tasks whose expert was a
-# sampling planner, so most of its verdicts described our learners failing, not DC. The
-# benchmark fixes the three things that made that so: **demonstrations that leave BC room**
-# (GAIL's own subsampling protocol, chosen per task by measurement, below), **only learners
-# that passed chapter 5's competence gate**, run with the gate's settings, and **budgets
-# where the gate's learning curves flattened** (300,000 interactions on hopper, 1,800,000
-# on the others, the same for every learner).
+# The benchmark is the second grid the book ran. The first (`dc-lesson sweep table3`, at the
+# end of this chapter, with what it found) ran every learner on whole, noise-free
+# demonstrations and a short budget, before any learner had shown it could learn, so most of
+# its verdicts described our learners, not DC. The benchmark changes the three things that
+# made that so: **demonstrations that leave BC room** (chosen per task by measurement, below:
+# GAIL's own subsampling protocol where it gives room), **only learners that passed chapter
+# 5's competence gate**, run with the gate's settings, and **budgets where the gate's
+# learning curves flattened**, the same for every learner (the design table below gives each
+# task's).
 #
 # **The measure.** A return $R$ of a policy is scaled by the same task's random policy and
 # expert,
@@ -109,9 +108,10 @@ def panel_grid(n: int, per_row: int = 4, height: float = 2.9):
 # ## Where BC leaves room: the benchmark's demonstrations
 #
 # The first grid (the end of this chapter) ran on whole, noise-free demonstrations, and on
-# them BC is already at the expert on cartpole and hopper at every count: there is nothing
-# for a learner to fix, so that comparison cannot show the covariate shift the paper's DC is about (the paper's BC at
-# 4 demonstrations is about 0.45-0.65 of its experts' return). So before Table III was run
+# some tasks BC is then at the expert from the fewest count (the *full* lines below): there
+# is nothing for a learner to fix, so that comparison cannot show the covariate shift the
+# paper's DC is about (the paper's BC at 4 demonstrations is about 0.45-0.65 of its
+# experts' return). So before Table III was run
 # again, the `headroom` study (`dc-lesson sweep headroom`, module
 # `dc_lesson.experiments.studies.headroom`) measures BC alone, 3 seeds a point, on two
 # protocols:
@@ -184,16 +184,16 @@ else:
 # The grid runs once, on its final design (`dc-lesson sweep benchmark`, module
 # `dc_lesson.experiments.studies.benchmark`, aggregate `benchmark.json`):
 #
-# * **demonstrations**: per task, the protocol and counts the rule above chose; where it
-#   found none but the expert is a network (ant), the subsampled protocol at the counts most
-#   tasks use, 11 and 25; no humanoid row (its expert is still the planner, chapter 0);
+# * **demonstrations**: per task, the protocol and counts the rule above chose (room at the
+#   fewest count; the second count is the most, 25, where BC may reach the expert); where it
+#   found none but the expert is a network, the subsampled protocol at the counts most tasks
+#   use (the table's "why" says where); no row for a task whose expert is still the planner;
 # * **rows**: BC (the common start: every learner of a seed starts from that seed's BC row)
 #   and every RL learner that passed the competence gate of chapter 5, run with the gate's
 #   settings; a learner that failed is not run, and the list below says why;
 # * **interactions**: per task, where the gate-passing learners' learning curves flattened
 #   in the competence study (hopper and halfcheetah, the tasks it measures); every other task
-#   takes the longest of those, having no curve of its own (1,800,000: the halfcheetah
-#   curves flatten last);
+#   takes the longest of those, having no curve of its own;
 # * **seeds**: 5, the fewest the verdict rule accepts; the expert row beside every task.
 #
 # The hopper ablations (Figures 3-6, below) run again on the benchmark's hopper start (`dc-lesson
@@ -252,7 +252,8 @@ display(Markdown(
 
 # %%
 t3 = table_three.load("benchmark.json")     # every Table III section below reads it
-designs = [_bench.design(t) for t in _bench.TASKS]
+# the design the grid ran (its aggregate's), else today's rule on the stored headroom study
+designs = t3["design"] if t3 is not None else [_bench.design(t) for t in _bench.TASKS]
 if t3 is None:
     display(Markdown(
         "**The benchmark has not been aggregated yet** on this checkout: `dc-lesson sweep "
@@ -280,12 +281,12 @@ else:
         if o["row"] == "bc":
             start.setdefault((o["task"], o["n_demos"]), []).append(o["scaled_return"])
     fewest = [(d["task"], d["counts"][0]) for d in designs if d["counts"]]
-    room = [f"{t} at {n}: {np.mean(start[(t, n)]):.2f} ({len(start[(t, n)])} seeds)"
-            for t, n in fewest if (t, n) in start]
-    if room:
+    room_at = [f"{t} at {n}: {np.mean(start[(t, n)]):.2f} ({len(start[(t, n)])} seeds)"
+               for t, n in fewest if (t, n) in start]
+    if room_at:
         display(Markdown(
             "**The room BC leaves**, BC's mean scaled return at each task's fewest "
-            "demonstrations (every learner's start): " + "; ".join(room) + "."))
+            "demonstrations (every learner's start): " + "; ".join(room_at) + "."))
     skipped = [d for d in designs if not d["counts"]]
     if skipped:
         display(Markdown("**Not in the benchmark**: " + "; ".join(
@@ -368,8 +369,8 @@ if t3 is not None:
 # side and at least the smallest effect of interest (printed below), *contradicted* if on the
 # other, *equal within* the bound if the whole 95% interval lies inside it, *inconclusive*
 # otherwise, and *not judged* with its reason: a learner that has not passed chapter 5's
-# competence gate (GAIL, PWIL, NDI and GPRIL: their claims say so), too few paired seeds (a
-# grid still accumulating), or a BC start at the ceiling or the floor, where the comparison
+# competence gate (the list of rows above says which; their claims say so), too few paired
+# seeds (a grid still accumulating), or a BC start at the ceiling or the floor, where the comparison
 # cannot show what the claim asks. "Comparable" claims take *equal within* as
 # their answer. The table after the claims puts each reason beside its word. Where a task has
 # too few seeds for its own word, each claim is also judged **across tasks**
@@ -382,9 +383,9 @@ if t3 is not None:
 # difference real when its 95% bootstrap interval excluded zero. Simulated under true nulls
 # (paired differences of mean zero: normal, heavy-tailed t(2), and a hopper-like bimodal law)
 # at the grids' 5 and 10 seeds, that declared a difference more often than the paired t-test
-# does on every null (the bootstrap under-covers with few values); the t-test stays at or
-# under 6% on all of them (`verdicts.false_positive_rate`,
-# checked in `tests/test_verdicts.py`). Below, both rules' false-positive rates recomputed, and
+# does on every null (the bootstrap under-covers with few values), while the t-test stays
+# near the nominal 5% (`verdicts.false_positive_rate`, checked in `tests/test_verdicts.py`;
+# the table below recomputes both). Below, both rules' false-positive rates recomputed, and
 # the rule's *power*: the chance that it calls a true difference of 0.1 scaled return (twice
 # the smallest effect) at the spread our grids actually have (the median standard deviation of
 # the per-seed differences over every paired comparison of the aggregate, and its usual number
@@ -418,9 +419,11 @@ if spreads:
         f"Power to detect a true difference of {effect:g} scaled return: " + "; ".join(
             f"**{_verdicts.power(effect, sd, n):.2f}** at {name}'s spread (sd {sd:.3f} of the "
             f"per-seed differences, {n} seeds)" for name, (sd, n) in spreads.items())
-        + f". So most *inconclusive* words below mean a grid too small to see {effect:g}, "
-          f"not evidence that there is no difference; with Holm across a claim's pairs the "
-          f"power is lower still."))
+        + (f". So most *inconclusive* words below mean a grid too small to see {effect:g}, "
+           f"not evidence that there is no difference; with Holm across a claim's pairs the "
+           f"power is lower still." if min(_verdicts.power(effect, sd, n) for sd, n in
+                                           spreads.values()) < 0.8 else
+           f". With Holm across a claim's pairs the power is lower.")))
 
 # %%
 from dc_lesson.experiments import claims as _claims_mod, table_three_words
@@ -443,13 +446,13 @@ else:
 
 # %% [markdown]
 # **Orderings.** Kendall's $\tau$ between the paper's row and ours, per task and count, over
-# the learners both have (`learners`: BC and the learners that passed the gate, so three at
-# most), with each table's best learner (`paper_best`, `our_best`), at the counts both
-# tables have. Learners tied in our row count as neither concordant nor discordant, which
-# pulls $\tau$ towards 0; with three learners $\tau$ takes only the values -1, -1/3, 1/3 and
-# 1, so read it as "same order or not", and mind that the paper's demonstrations are whole,
-# ours subsampled. Left out: rows whose start is at the random level, and CartPole and Reacher
-# at 4 and 11 demonstrations (illegible in the paper).
+# the learners both have (`learners`: BC and the learners that passed the gate), with each
+# table's best learner (`paper_best`, `our_best`), at the counts both tables have. Learners
+# tied in our row count as neither concordant nor discordant, which pulls $\tau$ towards 0;
+# with as few as three learners $\tau$ takes only the values -1, -1/3, 1/3 and 1, so read
+# it as "same order or not", and mind that the paper's demonstrations are whole, ours
+# subsampled on most tasks (the design table). Left out: rows whose start is at the random
+# level, CartPole (illegible in the paper) and Reacher at 11 demonstrations (the same).
 
 # %%
 if t3 is not None:
@@ -465,9 +468,9 @@ if t3 is not None:
 # %% [markdown]
 # ### So, what does the benchmark say?
 #
-# The benchmark's demonstrations were chosen so that the common BC start leaves room on
-# every task; where a seed's start still sits at the ceiling or the floor, the rule says so
-# beside its word. The answer below groups the words
+# The benchmark's demonstrations were chosen so that the common BC start leaves room at each
+# task's fewest count; at the most (25) BC may be at the expert, and where a start sits at
+# the ceiling or the floor, the rule says so beside its word. The answer below groups the words
 # of the rule (`table_three_words`), never adding a word of its own.
 
 # %%
@@ -479,8 +482,8 @@ else:
                      + "\n".join(table_three_words.lines(t3, t3_verdicts))))
 
 # %% [markdown]
-# Where the paper's means lie within one of its standard deviations of each other (Ant at 18,
-# say), its ordering is itself noise, and so is any agreement with it.
+# Where the paper's means lie within one of its standard deviations of each other, its
+# ordering is itself noise, and so is any agreement with it.
 #
 # %% [markdown]
 # ## Figure 11: learning curves at the fewest demonstrations
@@ -500,11 +503,12 @@ if tasks11:
     fewest = {d["task"]: d["counts"][0] for d in designs if d["counts"]}
     fig, axes = panel_grid(len(tasks11))
     for ax, task in zip(axes.flat, tasks11):
-        curves = table_three.figure11({"observations": [
-            o for o in t3["observations"] if o["n_demos"] == fewest[task]]}, task)
+        # every curve cut at the checkpoints all of them reached, as the claims read them
+        curves = table_three.figure11({"observations": table_three._common_curves([
+            o for o in t3["observations"] if o["n_demos"] == fewest[task]])}, task)
         for row, per_seed in sorted(curves.items()):
             steps = np.array([p[0] for p in per_seed[0]])
-            values = np.array([[p[1] for p in c] for c in per_seed if len(c) == len(steps)])
+            values = np.array([[p[1] for p in c] for c in per_seed])
             band = np.array([_report.t_interval(values[:, j]) if len(values) > 1
                              else (values[0, j],) * 3 for j in range(values.shape[1])])
             ax.plot(steps, band[:, 0], label=f"{row} ({len(values)})", color=COLOURS.get(row))
@@ -542,7 +546,7 @@ else:
 # floor, and BC is every RL learner's common start.
 
 # %%
-t1 = table_one.load()
+t1 = table_one.load(_claims_mod.table1_result())   # the grid the mode claims read
 if t1 is None:
     print("Figure 8 needs table1: dc-lesson sweep table1 && dc-lesson aggregate table1")
 else:
@@ -582,8 +586,8 @@ if t1 is not None:
 # ## The ablations on Hopper (the paper's Figures 3-6)
 #
 # The paper's ablations are on Hopper with 11 demonstrations. Our first run of them started
-# from BC on 11 whole demonstrations, which is already at the expert (0.999 on 5 of 5 seeds),
-# so every DC row could only end below it and "more loops help" measured how much of its own
+# from BC on 11 whole demonstrations, which is already at the expert (its start's mean is
+# printed below, beside the rerun's), so every DC row could only end below it and "more loops help" measured how much of its own
 # damage DC repaired. The rerun (`dc-lesson sweep ablations`, `studies.ablations`, read by
 # `dc_lesson.experiments.ablations`) starts every cell from the benchmark's hopper start:
 # BC on 11 demonstrations subsampled as GAIL's protocol does (every 20th pair from a random
@@ -645,7 +649,13 @@ if abl_start:
         f"{max(abl_start):.2f})"
         + (f", {at}: no learner can add to it, so the return claims below are not judged, "
            f"with that reason." if at == table_three_words.CEILING else
-           f", {at}." if at else ": room to improve, which the first run never had.")))
+           f", {at}." if at else ": room to improve.")))
+    first = [o["scaled_return"] for o in ablations.observations(ablations.load("first"))
+             if o["row"] == "bc"]
+    if first:
+        display(Markdown(
+            f"The first run's start (11 whole demonstrations): **{np.mean(first):.3f}** over "
+            f"{len(first)} seeds, from {min(first):.3f} to {max(first):.3f}."))
     from dc_lesson.experiments import aggregate as _agg
     minutes = {c["row"]: c["minutes"]
                for c in _agg.costs("ablations", abl["ablation"].get("budget", "lesson"))}
@@ -767,10 +777,10 @@ if abl:
 
 # %% [markdown]
 # The ablations' claims, each declared in `ablations.CLAIMS` with its measure and comparison,
-# judged like every other claim of the book. Two were declared after cells had run, and say
-# so in their reason: the paper's "one long loop is comparable", and "DC works in a wide
-# range of learning rates", the DC half of Figure 4's claim, judged alone because its GAIL
-# half cannot be.
+# judged like every other claim of the book. Three were declared after cells had run, and
+# say so in their reason: the paper's "one long loop is comparable", GAIL's fall at high
+# rates (chapter 2), and "DC works in a wide range of learning rates", the DC half of Figure
+# 4's claim, judged alone because its GAIL half cannot be.
 
 # %%
 abl_verdicts = ablations.verdicts(abl)
@@ -826,11 +836,9 @@ if t3 is not None:
 # (`dc_lesson.experiments.studies.table3`, aggregate `table3.json`): every learner, 4, 11,
 # 18 and 25 whole demonstrations, 100,000 interactions (about 22 PPO updates; the paper ran
 # 1000 iterations), before the competence gate existed. It is kept, complete, as the record
-# of what the book said before, and of why that was not an answer: BC at the expert on
-# cartpole and hopper from 4 demonstrations, at the random level on walker, ant and humanoid
-# (their experts were sampling planners then), and five of the six RL learners falling from
-# a perfect start within the first 20,000 interactions (chapter 5's competence study found
-# why, and fixed what it could).
+# of what the book said before, and of why that was not an answer: where its common BC start
+# sat (the line under its table below, from its own cells), and the RL learners falling from
+# perfect starts that chapter 5's competence study traced and fixed where it could.
 #
 # ### Its design
 #
@@ -895,7 +903,7 @@ display(pd.DataFrame(study.expert_manifest()).set_index("task").rename(columns={
 
 
 # %% [markdown]
-# Its Table III, in the same layout as the benchmark's above:
+# Its Table III, in the benchmark's layout without the expert column:
 
 # %%
 t3_old = table_three.load()
@@ -913,6 +921,14 @@ else:
                          if (t, n) in wide.index]).fillna("—")   # —: reduced rows
     with pd.option_context("display.max_columns", 20, "display.width", 200):
         display(wide)
+    lv = table_three_words.start_levels(t3_old)
+    at = {w: sorted({t for (t, n), v in lv.items() if v == w and n == min(
+        n2 for (t2, n2) in lv if t2 == t)}) for w in (table_three_words.CEILING,
+                                                      table_three_words.FLOOR)}
+    display(Markdown(
+        "Where the first grid's common BC start sat at its fewest demonstrations: "
+        + "; ".join(f"{w} on {', '.join(ts)}" for w, ts in at.items() if ts) + "."
+        if any(at.values()) else "The first grid's BC start left room on every task."))
 
 # %% [markdown]
 # **The verdicts, old and new.** Each Table III claim as the first grid answered it (every
@@ -921,15 +937,13 @@ else:
 # (`dc-lesson aggregate benchmark --partial`).
 
 # %%
-from dc_lesson.experiments import table_three as _t3_words
-
 _bench_rec = _report.stored("benchmark.json")
 _old = _report.stored("table3.json")
 if _old is not None:
     if _bench_rec is not None:
         print(f"benchmark.json: {_bench_rec['cells']['n']} of "
               f"{_bench_rec['cells'].get('of', _bench_rec['cells']['n'])} cells")
-    display(pd.DataFrame(_t3_words.old_new(_old, _bench_rec)).set_index("claim"))
+    display(pd.DataFrame(table_three.old_new(_old, _bench_rec)).set_index("claim"))
 
 # %% [markdown]
 # ### What the first grid took
@@ -942,9 +956,11 @@ if _old is not None:
 # order of magnitude a reader's laptop will see.
 
 # %%
+cost = None
 if t3_old is not None:       # —: no such cell (no expert row on the planner tasks)
     cost, plan, done_hours = cost_table("table3", t3_old["budget"],
                                         ("expert", *study.LEARNERS), study.TASKS)
+if cost is not None:
     display(Markdown(
         f"The grid at budget `{t3_old['budget']}`: {len(plan['grid'])} cells, "
         f"{len(plan['grid']) - len(plan['todo'])} done in {done_hours:.1f} CPU-hours; "
@@ -974,10 +990,10 @@ if t3_old is not None:       # —: no such cell (no expert row on the planner t
 # stored aggregates give today: chapter 1's (BC and the demonstrations), chapter 2's (GAIL's
 # collapse on the hidden-coin demonstrations), chapter 4's (Table I, the modes) and this
 # chapter's (the Hopper ablations; Table III, Figures 9 and 11). A claim whose grid has not run says so.
-# "Faster" appears three times, three measures of one sentence of the paper: on the
-# multi-mode tasks by the returns of the training episodes (chapter 4), on Hopper by the
+# "Faster" appears twice, two measures of one sentence of the paper: on Hopper by the
 # deterministic evaluations of the first half of the interactions (the ablations), and on
-# the single-mode tasks by the mean of the checkpoint evaluations (Figure 11).
+# the single-mode tasks by the mean of the checkpoint evaluations (Figure 11); both compare
+# DC with GAIL, so both say "not judged" while GAIL has not passed the gate.
 
 # %%
 from dc_lesson.storage import read_result
@@ -1022,17 +1038,19 @@ from dc_lesson.experiments import findings
 _all_verdicts = ablations.book_verdicts(actions="mean") + list(t3_verdicts)
 _sources = {"performance": {"the benchmark": t3},
             "stability": {"the hopper ablations": abl.get("ablation"), "the benchmark": t3},
-            "modes": {"Table I's rerun under the gate": _report.stored("modes.json")}}
+            "modes": {_claims_mod.table1_result().removesuffix(".json"):
+                      _report.stored(_claims_mod.table1_result())}}
 for _q in findings.QUESTIONS:
     _a = findings.answer(_q, _all_verdicts, _sources[_q.key])
     display(Markdown(f"**{_a['question']}** {_a['lead']}\n\n" + "\n".join(_a["lines"])))
 
 # %% [markdown]
-# Read "not judged" as what it is: the comparison the paper draws is with a learner that
-# failed our competence gate (GAIL above all), so our port cannot say whether the paper is
-# right there, only that our GAIL is not good enough to ask. Where the paper's comparison
-# could be asked of a competent learner, the book asks it (DRIL, DC's own start, DC's own
-# variants), and those claims say so in their names.
+# Read "not judged" by its reason. Where the comparison the paper draws is with a learner
+# that failed our competence gate, our port cannot say whether the paper is right there,
+# only that our implementation of that learner is not good enough to ask; where a grid is
+# still accumulating, the answer waits for its seeds. Where the paper's comparison could be
+# asked of a competent learner, the book asks it (DRIL, DC's own start, DC's own variants),
+# and those claims say so in their names.
 
 # %% [markdown]
 # ## Summary
@@ -1050,8 +1068,8 @@ for _q in findings.QUESTIONS:
 #   paired seeds named, not counted; and *not judged* wherever a learner compared, DC
 #   included, has not passed chapter 5's competence gate (its reason printed beside the
 #   word).
-# * The benchmark leaves BC room by measurement (GAIL's subsampled demonstrations, counts
-#   chosen so that BC starts well below the expert), runs only the learners that passed the
+# * The benchmark leaves BC room by measurement (GAIL's subsampled demonstrations where they
+#   give room, at counts where BC starts below the expert), runs only the learners that passed the
 #   competence gate, and gives each task the interactions where the gate's curves flattened;
 #   the first grid, which had none of this, stays at the end as the record of why.
 # * The hopper ablations start from that benchmark's hopper start, so a loop can show what

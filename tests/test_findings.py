@@ -50,3 +50,26 @@ def test_every_question_asks_claims_the_book_declares():
     assert [q.key for q in F.QUESTIONS] == ["performance", "stability", "modes"]
     for q in F.QUESTIONS:
         assert q.claims and {c.name for c in q.claims} <= declared
+
+
+def test_the_lead_says_why_claims_were_not_judged_and_when_a_word_rests_on_part_of_a_claim():
+    q = F.QUESTIONS[0]
+    gate = V.Verdict(q.claims[3].name, "s", "r", "not judged: gail failed the competence "
+                     "gate — keep on cartpole", "")
+    vs = [_v(q.claims[0], "reproduced", "not judged: fewer than 5 paired seeds"),
+          _v(q.claims[1], "not judged: fewer than 5 paired seeds"),
+          _v(q.claims[2], "not judged: start at the ceiling"), gate]
+    lead = F.answer(q, vs)["lead"]
+    assert lead.startswith(f"Of its {len(q.claims)} claims: 1 reproduced, 3 not judged (")
+    assert "too few paired seeds yet: 1" in lead and "a start at the ceiling or floor: 1" in lead
+    assert "a learner compared failed the competence gate: 1" in lead
+    assert "1 of the judged claims rest on part of their (task, count) pairs" in lead
+    assert F.why_not(V.Verdict("x", "s", "r", "not judged: something new", "")) == ["other"]
+
+
+def test_a_claim_judged_across_tasks_shows_that_word_too():
+    v = _v(C.DC_BEATS_BC, "not judged: fewer than 5 paired seeds")
+    across = V.Entry("across tasks", "reproduced", 0.1, 0.05, 0.2, 6, 0.01, 0.05)
+    v = V.Verdict(v.claim, v.source, v.rule, v.verdict, "", "", v.per_task, across)
+    line = F.answer(F.QUESTIONS[0], [v])["lines"][0]
+    assert line.endswith("Across tasks: reproduced.")

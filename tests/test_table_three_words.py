@@ -85,3 +85,23 @@ def test_a_benchmark_held_back_by_the_gate_says_why_not_that_seeds_are_missing()
     assert text.startswith("No (task, demonstration count) pair is judged: dc failed the "
                            "competence gate — keep on hopper")
     assert "paired seeds" not in text and "implementations" in text
+
+
+def test_a_gail_kept_out_by_the_gate_is_named_with_its_reason_not_counted_as_zeros():
+    rec = _rec({("reacher1", 4): 0.5}, {("reacher1", 4): 0.2})
+    rec["observations"] = [o for o in rec["observations"] if o["row"] != "gail"]   # not run
+    vs = t3.verdicts(rec, competence={"gail": "failed the competence gate — keep on "
+                                              "cartpole: a checkpoint fell 0.3 below"})
+    s = w.conclusion(rec, vs)
+    assert "against GAIL, not judged (gail failed the competence gate" in s
+    assert "above on 0, below on 0" not in s.split("against GAIL")[1]
+
+
+def test_a_partial_benchmark_judges_the_fewest_only_claims_at_its_designed_fewest_count():
+    rec = _rec({("reacher1", 25): 0.5}, {("reacher1", 25): 0.2})   # only the most has run
+    rec["design"] = [{"task": "reacher1", "counts": [11, 25]}]
+    few = {v.claim: v for v in t3.verdicts(rec)}[claims.DC_BEATS_DRIL_FEW.name]
+    assert few.per_task == ()                    # nothing at 11 yet: not judged at 25
+    del rec["design"]
+    few = {v.claim: v for v in t3.verdicts(rec)}[claims.DC_BEATS_DRIL_FEW.name]
+    assert [e.key for e in few.per_task] == [("reacher1", 25)]

@@ -1,7 +1,12 @@
 """The paper's ablations on Hopper (Figures 3-6), read from their cell aggregates.
 
-Three studies, each a grid of cells on ``hopper`` with 11 demonstrations (the paper's setting)
-and the seeds of ``budget.seeds_for("hopper")``, every RL run from the seed's BC warm start:
+The book reads the rerun on the benchmark's hopper start (``ablations.json``,
+``studies.ablations``: BC on 11 subsampled demonstrations, a start with room, DC as the
+competence gate runs it, no GAIL rows since GAIL failed the gate) through :func:`from_rerun`,
+which :func:`load` returns by default once it is stored.  ``load("first")`` gives the first
+run, kept as its record (chapter 02 draws its GAIL sweep): three studies, each a grid of cells
+on ``hopper`` with 11 whole demonstrations (the paper's setting) and the seeds of
+``budget.seeds_for("hopper")``, every RL run from the seed's BC warm start:
 
 * ``dc_ablation.json``: rows ``dc-loops=L`` (L = 1..4 loops of one fixed number of
   iterations), ``dc-loops=1-long`` (one loop as long as L = 4: the same interactions),
@@ -66,7 +71,8 @@ def load(which: str = "rerun") -> dict:
 
 
 def observations(recs: dict) -> list[dict]:
-    """All learner observations of the three studies (the BC starts once per seed)."""
+    """All learner observations of the aggregates in ``recs`` (:func:`load`; the BC starts
+    once per seed)."""
     obs, starts = [], set()
     for rec in recs.values():
         for o in rec["observations"]:

@@ -11,7 +11,11 @@ verdicts of those claims, by fixed rules and no word of its own:
   per task, or per task and count) and the grid it rests on;
 * the question's lead sentence counts the claims by their word: how many reproduced, how
   many contradicted, how many came out equal within the bound, inconclusive, mixed (a claim
-  whose tasks gave different words), or not judged;
+  whose tasks gave different words), or not judged, and why (:func:`why_not`: a learner
+  that failed the competence gate, a grid run before the gate, too few paired seeds yet, a
+  start at the ceiling or floor); a word that rests on part of its claim's (task, count)
+  pairs says on how many;
+* a claim judged across tasks too (``Verdict.across``) shows that word beside its own;
 * a grid still accumulating is named as such in the lead, so a reader sees when an answer
   is provisional (:func:`provisional`).
 
@@ -40,8 +44,8 @@ QUESTIONS = (
     Question("performance", "Does DC perform as well as or better than the baselines?",
              (C.DC_BEATS_BC, C.COMPARABLE_BC, C.DC_BEATS_DRIL_FEW, C.COMPARABLE)),
     Question("stability", "Is DC's training stable, and does its update converge?",
-             (C.LOOPS, C.EQUAL_BUDGET, C.LR_WIDE, C.CONVERGES, C.DC_STABLE_DRIL, C.STABLE,
-              C.DC_STABLE)),
+             (C.LOOPS, C.LONG_LOOP, C.EQUAL_BUDGET, C.LR_WIDE, C.CONVERGES, C.DC_STABLE_DRIL,
+              C.STABLE, C.DC_STABLE)),
     Question("modes", "Does DC keep the expert's modes where GAIL collapses?",
              (C.DC_KEEPS_MODES, C.GAIL_COLLAPSES, C.LOWEST_DIVERGENCE, C.HIGHER_RETURN)),
 )
@@ -57,6 +61,26 @@ def word_of(v: V.Verdict) -> str:
     if not judged:
         return V.NOT_JUDGED
     return judged[0] if len(set(judged)) == 1 else MIXED
+
+
+# why a claim was not judged, by the words of its reason (verdicts' reasons), in this order
+WHY_NOT = (("before the gate", "its grid ran before the competence gate"),
+           ("failed the competence gate", "a learner compared failed the competence gate"),
+           ("paired seeds", "too few paired seeds yet"),
+           ("start at the", "a start at the ceiling or floor"))
+
+
+def why_not(v: V.Verdict) -> list[str]:
+    """The kinds of reason (:data:`WHY_NOT`) a claim's not-judged members give, in order;
+    ``["other"]`` for a reason none names."""
+    texts = [e.word for e in v.per_task if V.kind(e.word) == V.NOT_JUDGED] or [v.verdict]
+    found = [label for key, label in WHY_NOT if any(key in t for t in texts)]
+    return found or ["other"]
+
+
+def coverage(v: V.Verdict) -> tuple[int, int]:
+    """(judged members, all members) of a claim's family."""
+    return (sum(V.kind(e.word) != V.NOT_JUDGED for e in v.per_task), len(v.per_task))
 
 
 def provisional(sources: dict) -> list[str]:
@@ -77,7 +101,7 @@ def answer(q: Question, verdicts: list, sources: dict | None = None) -> dict:
     sentence (module docstring), one Markdown line per claim of ``q`` found in
     ``verdicts`` (a claim not found says "not run yet"), and ``{claim: word}``."""
     by = {v.claim: v for v in verdicts}
-    words, lines = {}, []
+    words, lines, why, part = {}, [], {}, 0
     for c in q.claims:
         v = by.get(c.name)
         if v is None:
@@ -85,16 +109,31 @@ def answer(q: Question, verdicts: list, sources: dict | None = None) -> dict:
             lines.append(f"* {c.name} ({c.source}): not run yet.")
             continue
         words[c.name] = word_of(v)
-        lines.append(f"* {c.name} ({c.source}): **{v.verdict}**.")
+        judged, members = coverage(v)
+        if words[c.name] == V.NOT_JUDGED:
+            for reason in why_not(v):
+                why[reason] = why.get(reason, 0) + 1
+        elif judged < members:
+            part += 1
+        across = (f" Across tasks: {V.kind(v.across.word)}." if v.across is not None
+                  and V.kind(v.across.word) != V.NOT_JUDGED else "")
+        lines.append(f"* {c.name} ({c.source}): **{v.verdict}**.{across}")
     order = (V.REPRODUCED, V.CONTRADICTED, V.EQUAL, V.INCONCLUSIVE, MIXED, V.NOT_JUDGED,
              "not run yet")
     said = [f"{sum(w == k for w in words.values())} {k}" for k in order
             if any(w == k for w in words.values())]
-    lead = f"Of its {len(q.claims)} claims: " + ", ".join(said) + "."
+    lead = f"Of its {len(q.claims)} claims: " + ", ".join(said)
+    if why:
+        lead += " (" + "; ".join(f"{r}: {k}" for r, k in why.items()) + ")"
+    lead += "."
+    if part:
+        lead += (f" {part} of the judged claims rest on part of their (task, count) pairs, "
+                 f"the rest not judged (their lines say which).")
     late = provisional(sources or {})
     if late:
         lead += " Provisional: it rests on grids still accumulating, " + "; ".join(late) + "."
     return {"question": q.question, "lead": lead, "lines": lines, "words": words}
 
 
-__all__ = ["MIXED", "QUESTIONS", "Question", "answer", "provisional", "word_of"]
+__all__ = ["MIXED", "QUESTIONS", "Question", "WHY_NOT", "answer", "coverage", "provisional",
+           "why_not", "word_of"]

@@ -1,4 +1,5 @@
-"""Chapter 06's reading of the single-mode benchmark (``table3.json``) and of Figure 8.
+"""Chapter 06's reading of the single-mode benchmark (``benchmark.json``; the first grid,
+``table3.json``, in the same form) and of Figure 8.
 
 Table III and Figure 9 (scaled return against demonstrations), Figure 11 (return against
 interactions at the fewest demonstrations, from deterministic evaluations at checkpoints) and
@@ -250,10 +251,15 @@ def verdicts(rec: dict, competence: dict | str | None = "stored") -> list:
     obs = [{**o, "curve_mean": _curve_mean(o), "curve_spread": _curve_spread(o)}
            for o in _common_curves([o for o in rec["observations"] if o["row"] != "expert"])]
     obs += _lowest_other(obs)
-    # each task's own fewest and most demonstrations (the benchmark's counts differ by task)
+    # each task's own fewest and most demonstrations (the benchmark's counts differ by task):
+    # the grid's design where the aggregate records it, so that a partial grid whose fewest
+    # count has not run yet does not judge the fewest-only claims at its most
     counts: dict = {}
     for o in obs:
         counts.setdefault(o["task"], set()).add(o["n_demos"])
+    for d in rec.get("design") or []:
+        if d.get("counts") and d["task"] in counts:
+            counts[d["task"]] = set(d["counts"])
     fewest = {t: min(c) for t, c in counts.items()}
     most = {t: max(c) for t, c in counts.items()}
     out = []

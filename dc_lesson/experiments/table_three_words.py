@@ -2,8 +2,8 @@
 
 Every word is :mod:`verdicts`' (*reproduced*, *contradicted*, *equal within 0.05*,
 *inconclusive*, *not judged: reason*); this module only groups them.  Where the common BC
-start already earns the expert's return (within ``verdicts.LEVEL_GAP`` of 1: our cartpole and
-hopper ports) "DC outperforms BC" cannot be shown, so that comparison is *not judged: start at
+start already earns the expert's return (within ``verdicts.LEVEL_GAP`` of 1: the first
+grid's cartpole and hopper) "DC outperforms BC" cannot be shown, so that comparison is *not judged: start at
 the ceiling*, and what is left to ask there is whether DC keeps the start's return
 (``claims.COMPARABLE_BC``: *equal within 0.05*); where the start sits at random's level, no
 learner has anything to start from (*not judged: start at the floor*).
@@ -95,6 +95,19 @@ def _words(v) -> dict:
     return {e.key: V.kind(e.word) for e in v.per_task}
 
 
+def _against_gail(v, gail: dict, room: list, n) -> str:
+    """The GAIL half of :func:`conclusion`'s first sentence: the counts where GAIL was
+    judged; where it was not run (it failed the competence gate), that reason instead of
+    counts of zero that would read as a comparison made."""
+    if not any(w != V.NOT_JUDGED for w in gail.values()):
+        why = v.verdict.split(": ", 1)[1] if V.kind(v.verdict) == V.NOT_JUDGED and \
+            ": " in v.verdict else "no pair judged"
+        return f"against GAIL, not judged ({why})."
+    return (f"against GAIL, above on {n(gail, room, V.REPRODUCED)}, below on "
+            f"{n(gail, room, V.CONTRADICTED)}, equal on {n(gail, room, V.EQUAL)}, undecided "
+            f"on {n(gail, room, V.INCONCLUSIVE)}.")
+
+
 def conclusion(rec: dict, vs: list | None = None) -> str:
     """The chapter's answer in one paragraph, by a fixed rule on the verdicts:
 
@@ -135,10 +148,8 @@ def conclusion(rec: dict, vs: list | None = None) -> str:
                  f"{_span(room)}), DC's return is above its start's on "
                  f"{n(beats, room, V.REPRODUCED)}, below on {n(beats, room, V.CONTRADICTED)}, "
                  f"equal within {V.SMALLEST['scaled_return']} on {n(beats, room, V.EQUAL)} and "
-                 f"undecided on {n(beats, room, V.INCONCLUSIVE)}; against GAIL, above on "
-                 f"{n(gail, room, V.REPRODUCED)}, below on {n(gail, room, V.CONTRADICTED)}, "
-                 f"equal on {n(gail, room, V.EQUAL)}, undecided on "
-                 f"{n(gail, room, V.INCONCLUSIVE)}.")
+                 f"undecided on {n(beats, room, V.INCONCLUSIVE)}; " + _against_gail(
+                     by[claims.COMPARABLE.name], gail, room, n))
     else:
         s.append("On no task-count pair with enough seeds does the BC start leave room: it "
                  "is at the expert's return or at random's on every one.")
