@@ -641,12 +641,57 @@ if modes_rec is None:
           "aggregate modes (--partial for the cells that have run)")
 else:
     print(table_one.status(modes_rec))
-    with pd.option_context("display.max_colwidth", 60, "display.width", 250):
-        display(pd.DataFrame(table_one.table(modes_rec)).set_index(["task", "row"]))
-    coin = table_one.collapse_words(modes_rec, ("bc-coin", "dc-coin", "bc-full-coin"))
+    for actions in ("mean", "sampled"):
+        print(f"\n{actions} action")
+        with pd.option_context("display.max_colwidth", 60, "display.width", 250,
+                               "display.max_rows", None):
+            display(pd.DataFrame(table_one.table(modes_rec, actions)).set_index(["task", "row"]))
+
+# %% [markdown]
+# Where each row's episodes end up: the share that arrives at a mode at all beside the share
+# of those arrivals at the row's largest mode (a policy that goes nowhere has not collapsed
+# onto a mode, and one that arrives rarely but always at one has), then who collapses on
+# the hidden-coin demonstrations, by chapter 2's rule, and whether each mixture start
+# matched plain BC's return before its DC was run.
+
+# %%
+if modes_rec is not None:
+    present = list(dict.fromkeys(o["row"] for o in modes_rec["mean"]["observations"]))
+    rows = [r for r in ("bc", "bc-full", "bc-lib", "dc", "dc-lib", "dril", "bc-mix",
+                        "dc-mix") if r in present]
+    display(Markdown("\n".join(table_one.arrival_lines(modes_rec, rows))))
+    coin = table_one.collapse_words(modes_rec, [r for r in (
+        "bc-coin", "dc-coin", "bc-full-coin", "bc-mix-coin", "dc-mix-coin") if r in present])
     if coin:
-        display(Markdown("**Who collapses on the hidden coin, under the gate** (the rule "
-                         "above): " + coin + " GAIL is not in this grid: it failed the gate."))
+        display(Markdown("**Who collapses on the hidden coin, under the gate** (a row "
+                         "collapses on a task when more than half of its seeds do): " + coin
+                         + " GAIL is not in this grid: it failed the gate."))
+    match = {}
+    for o in modes_rec["mean"]["observations"]:
+        if "matched" in o and o["row"].split(" ")[0] in ("bc-mix", "bc-mix-coin"):
+            match.setdefault((o["task"], o["row"].split(" ")[0]), []).append(o["matched"])
+    if match:
+        display(Markdown("**The mixture starts**, matched to plain BC's return (within "
+                         f"{modes_rec['match']['tolerance']}) on the seeds so far: " + "; ".join(
+                             f"{r} on {t}: {sum(v)} of {len(v)}" for (t, r), v in
+                             sorted(match.items())) + "."))
+    figs = list(table_one.coverage_figures(
+        modes_rec, {r: r for r in ("expert", "bc", "dc", "dc-lib", "dril") if r in present
+                    or r == "expert"}, "mode coverage under the gate, seeds pooled"))
+    for _ in figs:
+        plt.show()
+
+# %% [markdown]
+# The mode claims on the rerun, by the same rule, with their DRIL forms (DRIL passed the
+# gate; the paper's Table I lists it and says it collapses on HalfCheetah2), as the cells
+# come in (mean action):
+
+# %%
+if modes_rec is not None:
+    with pd.option_context("display.max_colwidth", None):
+        display(pd.DataFrame([{"claim": v.claim, "verdict": v.verdict} for v in
+                              _claims_t1.verdicts(actions="mean", result="modes.json")])
+                .set_index("claim"))
 
 # %% [markdown]
 # ### A policy that can hold several modes (beyond the paper)

@@ -179,3 +179,30 @@ def test_the_mode_claims_read_the_rerun_only_once_it_is_complete(monkeypatch):
     assert _c.table1_result() == "modes.json"
     stored.clear()
     assert _c.table1_result() == "table1.json"          # never made
+
+
+@pytest.mark.usefixtures("judge_every_learner")
+def test_drils_collapse_is_judged_on_halfcheetah2_alone_and_dc_against_drils_emd():
+    obs = []
+    for task in ("r2", "halfcheetah2"):
+        for o in _mode_obs(0.95):
+            o = {**o, "task": task}
+            if o["row"] == "gail":
+                o["row"] = "dril"
+            obs.append({**o, "emd": 1.0 if o["row"] == "dril" else 0.5 + 0.01 * o["seed"]})
+    shares = {"r2": {"red": 0.5, "blue": 0.5}, "halfcheetah2": {"red": 0.5, "blue": 0.5}}
+    by = {x.claim: x for x in claims.verdicts(obs, shares)}
+    dril = by[claims.DRIL_COLLAPSES.name]
+    assert [e.key for e in dril.per_task] == ["halfcheetah2"]       # where the paper says it
+    assert dril.per_task[0].word == "reproduced"
+    assert "dril collapsed in 10 of 10 seeds" in dril.evidence
+    below = by[claims.DC_BELOW_DRIL.name]
+    assert {e.key for e in below.per_task} == {"r2", "halfcheetah2"}
+    assert all(e.word == "reproduced" for e in below.per_task)      # DC's EMD the lower
+
+
+def test_a_claim_with_nothing_paired_yet_is_not_judged_rather_than_inconclusive():
+    from dc_lesson.experiments import verdicts as V
+    v = V.judge_claim(claims.DC_BELOW_DRIL, [{"task": "r2", "seed": 0, "row": "dc",
+                                              "emd": 0.1}], competence={})
+    assert v.verdict == "not judged: no paired seeds of dc and dril yet"

@@ -47,7 +47,8 @@ QUESTIONS = (
              (C.LOOPS, C.LONG_LOOP, C.EQUAL_BUDGET, C.LR_WIDE, C.CONVERGES, C.DC_STABLE_DRIL,
               C.STABLE, C.DC_STABLE)),
     Question("modes", "Does DC keep the expert's modes where GAIL collapses?",
-             (C.DC_KEEPS_MODES, C.GAIL_COLLAPSES, C.LOWEST_DIVERGENCE, C.HIGHER_RETURN)),
+             (C.DC_KEEPS_MODES, C.GAIL_COLLAPSES, C.DRIL_COLLAPSES, C.LOWEST_DIVERGENCE,
+              C.DC_BELOW_DRIL, C.HIGHER_RETURN)),
 )
 
 

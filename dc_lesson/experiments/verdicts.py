@@ -419,6 +419,10 @@ def judge_claim(claim: Claim, obs, keys=None, measure=None, note: str = "", by=(
     if not members and gate:   # a row the gate kept out of the grid: no pairs, and why
         return Verdict(claim.name, claim.source, claim.rule, f"{NOT_JUDGED}: {gate}",
                        evidence(claim, entries, note), claim.reason, entries, None)
+    if not members:            # nothing paired yet: not a test that came out undecided
+        return Verdict(claim.name, claim.source, claim.rule,
+                       f"{NOT_JUDGED}: no paired seeds of {claim.a} and {claim.b} yet",
+                       evidence(claim, entries, note), claim.reason, entries, None)
     return Verdict(claim.name, claim.source, claim.rule, count(entries, unit),
                    evidence(claim, entries, note), claim.reason, entries,
                    judge_across(claim, members, competence) if across else None)
