@@ -300,3 +300,14 @@ def test_seal_adds_digests_once_and_never_seals_a_damaged_record(study_copy):
     with pytest.raises(cells.CellError, match="where a number"):
         cells.seal()
     assert cells.DIGEST not in json.loads(paths[0].read_text())
+
+
+def test_a_yes_no_flag_may_be_a_bool_where_it_is_named_and_nowhere_else(tmp_path):
+    path = tmp_path / "cell.json"
+    ok = {"result": {"match": {"target": 0.9, "matched": False}}}
+    cells._numbers_only(ok["result"], "result", path)          # the named flag: accepted
+    bad = {"result": {"match": {"target": True, "matched": False}}}
+    with pytest.raises(cells.CellError, match=r"result.match.target is True \(bool\)"):
+        cells._numbers_only(bad["result"], "result", path)
+    with pytest.raises(cells.CellError, match=r"matched is 'no' \(str\)"):
+        cells._numbers_only({"matched": "no"}, "result", path)

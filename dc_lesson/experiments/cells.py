@@ -267,6 +267,9 @@ def _read(path, what: str = "cell file") -> bytes:
 # Text that may stand in a result where numbers do: the run's labels.  Everything else outside
 # a ``config`` echo (the settings a study copies into its result) must be a number or null.
 LABELS = frozenset({"task", "kind", "model", "feature", "modes"})
+# Yes/no outcomes a result may hold as true or false: the modes study's mixture start,
+# matched to plain BC or not (a bool anywhere else is refused: True would pass for 1).
+FLAGS = frozenset({"matched"})
 
 
 def _numbers_only(value, where: str, path, labels=LABELS) -> None:
@@ -276,6 +279,8 @@ def _numbers_only(value, where: str, path, labels=LABELS) -> None:
                 continue
             if k in labels and (isinstance(v, str) or (isinstance(v, list) and
                                                        all(isinstance(x, str) for x in v))):
+                continue
+            if k in FLAGS and isinstance(v, bool):
                 continue
             _numbers_only(v, f"{where}.{k}", path, labels)
     elif isinstance(value, list):
