@@ -112,7 +112,7 @@ def from_rerun(rec: dict) -> dict:
     keep = ("benchmark", "budget", "seeds", "complete", "cells", "revision", "time",
             "command", "steps", "design", "paired", "variants", _gate.GRID_MARK)
     return {"ablation": {**{k: rec[k] for k in keep if k in rec}, "observations": obs,
-                         "table": table, "rerun": True}}
+                         "table": table}}
 
 
 def lr_of(row: str) -> float | None:
