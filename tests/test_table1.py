@@ -781,3 +781,38 @@ def test_a_comparison_over_the_tasks_is_one_holm_family():
     got = table_one.family(rec, "dc", "bc", "scaled_return", competence={})
     assert alone == "reproduced" and got[table_one.TASKS[0]].word == "inconclusive"
     assert got[table_one.TASKS[0]].p_holm == pytest.approx(3 * 0.0481, abs=2e-3)
+
+
+def test_a_grid_without_a_row_leaves_its_controls_and_comparators_out():
+    """The rerun under the gate has no GAIL and none of DC's diagnostics: its controls,
+    mode comparators and mixture comparisons leave them out instead of reading "not run
+    yet" forever, while a row of the design that has not run yet still says so."""
+    from dc_lesson.experiments import table_one_mixture as tx
+    from dc_lesson.experiments import table_one_modes as tm
+    tasks = ("reacher2", "reacher4", "halfcheetah2")
+    tv = {**{(t, r): 0.3 for t in tasks for r in ("bc-full", "bc-lib", "expert", "dc")}}
+    rec = _modes_rec(tv, {("bc", t): -0.2 for t in tasks})
+    assert "gail" in tm.against(rec)                    # no design record: every row kept
+    assert any(c["a - b"] == "gail - bc-lib" for c in table_one.controls(rec))
+    rec["rows"] = {r: {} for r in ("bc-full", "bc-lib", "dc", "dc-lib", "dril", "bc-mix",
+                                   "dc-mix")}
+    a = tm.against(rec)
+    assert "gail" not in a and "dc-noppo" not in a and a["dril"]["reacher2"][1] == \
+        "not judged: not run yet"                      # in the design, not yet run
+    got = {c["a - b"] for c in table_one.controls(rec)}
+    assert "dc-lib - bc-lib" in got and "dc - bc-lib" in got
+    assert not any("gail" in x or "noppo" in x for x in got)
+    assert not any("gail" in line or "noppo" in line for line in tm.lines(rec))
+    assert "not asked of this grid" in tm.mechanism(rec)
+    # no bc-mixstart in the design: the mixture DC's loop is measured against bc-mix
+    comps = {(a_, b_) for a_, b_, *_ in tx.comparisons(rec)}
+    assert ("dc-mix", "bc-mix") in comps and ("dc-mix", "dc") in comps
+    assert not any("coin" in a_ for a_, _ in comps)   # no coin rows in this design
+    assert table_one.in_grid(rec, "bc-mix (unmatched)") and table_one.in_grid(rec, "bc-coin")
+
+
+def test_float_rounding_prints_as_zero_and_a_small_difference_does_not():
+    from dc_lesson.experiments import report, verdicts
+    assert report.fmt(np.mean([0.1, 0.2, -0.3]), -1.0, 1.0) == "0.00 [-1.00, 1.00]"
+    assert verdicts.fmt_num(-5.6e-17) == "+0.000"
+    assert report.fmt(3e-4) == "3.0e-04" and verdicts.fmt_num(-3e-4) == "-3.0e-04"

@@ -8,6 +8,9 @@ always decided on the interval as computed, so clipping is for the reader's eye 
 from __future__ import annotations
 
 INF = float("inf")
+# Below this a printed value is float rounding (the mean of +0.5 and -0.5 can come out
+# 5.6e-17), not a measurement: no measure of this book means anything at that size.
+NOISE = 1e-9
 # Measures whose values cannot leave known limits (a t interval, symmetric about the mean, can:
 # a mode TV of 0.99 over seeds may print "0.99 [0.98, 1.01]").  Shares of episodes and total
 # variation distances lie in [0, 1]; an EMD and a spread over checkpoints are never negative.
@@ -38,4 +41,4 @@ def clip(lo: float | None, hi: float | None, limits: tuple[float, float] | None)
     return min(max(lo, limits[0]), limits[1]), max(min(hi, limits[1]), limits[0])
 
 
-__all__ = ["BOUNDS", "INF", "bounds", "clip"]
+__all__ = ["BOUNDS", "INF", "NOISE", "bounds", "clip"]

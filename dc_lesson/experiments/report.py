@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import math
 
-from dc_lesson.experiments.limits import BOUNDS, INF, bounds, clip  # noqa: F401 (re-exported)
+from dc_lesson.experiments.limits import BOUNDS, INF, NOISE, bounds, clip  # noqa: F401 (re-exported)
 from dc_lesson.storage import read_result
 
 
@@ -40,7 +40,10 @@ def fmt(mean: float, lo: float | None = None, hi: float | None = None, digits: i
 def _num(x: float, digits: int) -> str:
     """``x`` at ``digits`` decimals, or in two significant digits where that would print a
     nonzero value as 0 (a mean difference is never printed ``-0.00`` or ``0.00`` unless it
-    is zero; the interval's ends keep the fixed decimals)."""
+    is zero; the interval's ends keep the fixed decimals).  Below :data:`NOISE` a value is
+    float rounding (the mean of +0.5 and -0.5 can come out 5.6e-17) and prints as 0."""
+    if abs(x) < NOISE:
+        x = 0.0
     s = f"{x:.{digits}f}"
     return f"{x:.1e}" if x != 0 and math.isfinite(x) and float(s) == 0 else s
 

@@ -35,6 +35,7 @@ ROWS = {
     "gail-state": "GAIL, state-only D(s)",
     "gail-noisy": "GAIL exploring with the warm start's log-std -0.5 (untuned)",
     "dc": "DC (scaled log P reward)",
+    "dc-lib": "DC from bc-lib, its spread reset by the gate's rule (the best BC as start)",
     "dc-raw": "DC, the paper's raw log P reward",
     "dc-noppo": "DC without its PPO step (BC continuation)",
     "dc-gailreward": "Algorithm 2 with GAIL's reward for log P",
@@ -82,7 +83,24 @@ CONTROLS = (
     ("gail-coin", "bc-coin", "emd", "on the hidden-coin demonstrations, does GAIL?"),
     ("bc-mix-coin", "bc-full-coin", "emd", "can a mixture BC follow the hidden coin better?"),
     ("dc-mix-coin", "dc-coin", "emd", "does the mixture help DC on the hidden coin?"),
+    ("dc-lib", "bc-lib", "emd", "does DC move the standard library's BC towards the expert?"),
+    ("dc-lib", "dc", "emd", "does DC from the library's BC beat DC from the 70/30 start?"),
 )
+
+# Rows every Table I grid has: the floor and the warm starts its RL rows begin from.
+BASE_ROWS = ("expert", "bc", "bc-coin")
+
+
+def in_grid(rec: dict, row: str) -> bool:
+    """Whether ``row`` belongs to the grid ``rec`` aggregates: a row of its design (the
+    aggregate's ``rows``; a row's ``(unmatched)`` form counts as the row), one of
+    :data:`BASE_ROWS`, or a row observed in it.  An aggregate without a design record keeps
+    every row, so that a row it lacks reads "not run yet" rather than vanishing."""
+    if "rows" not in rec:
+        return True
+    base = row.split(" (")[0]
+    return (base in BASE_ROWS or base in rec["rows"]
+            or any(o["row"].split(" (")[0] == base for o in rec["mean"].get("observations", [])))
 
 
 def load(name: str = RESULT) -> dict | None:
@@ -304,10 +322,14 @@ def judge_entries(entries: dict, measure: str, rec: dict | None, actions: str = 
 
 def controls(rec: dict, actions: str = "mean",
              competence: dict | str | None = "stored") -> list[dict]:
-    """Every control on every task: the question, ``a - b`` with its interval, the word
-    (Holm across the control's tasks) and, beside it, the reason it is not judged."""
+    """Every control of the grid on every task: the question, ``a - b`` with its interval, the
+    word (Holm across the control's tasks) and, beside it, the reason it is not judged.  A
+    control whose rows are not both in the grid's design (:func:`in_grid`: the rerun has no
+    GAIL, the first grid no ``dc-lib``) is left out, not listed as "not run yet"."""
     out = []
     for a, b, measure, question in CONTROLS:
+        if not (in_grid(rec, a) and in_grid(rec, b)):
+            continue
         got = family(rec, a, b, measure, actions, competence, question)
         for task in TASKS:
             e = got.get(task)
@@ -577,16 +599,17 @@ def curves(rec: dict, task: str, row: str) -> list[dict]:
     return sorted(out, key=lambda d: d["seed"])
 
 
-def costs(rec: dict, since: str | None = None, until: str | None = None) -> list[dict]:
-    """Per (task, row) of the table1 cells that have run, their cost
-    (:func:`aggregate.costs`: minutes per cell, cells, training seconds per 100,000
-    interactions), from the cells written between ``since`` and ``until`` (ISO times: cells
-    of different machines must not be averaged into one cost)."""
+def costs(rec: dict, since: str | None = None, until: str | None = None,
+          study: str = "table1") -> list[dict]:
+    """Per (task, row) of ``study``'s cells that have run (``table1``, or ``modes``: the
+    rerun), their cost (:func:`aggregate.costs`: minutes per cell, cells, training seconds
+    per 100,000 interactions), from the cells written between ``since`` and ``until`` (ISO
+    times: cells of different machines must not be averaged into one cost)."""
     from dc_lesson.experiments import aggregate as _agg
-    return _agg.costs("table1", rec["budget"], since, until)
+    return _agg.costs(study, rec["budget"], since, until)
 
 
-__all__ = ["collapse_words", "CONTROLS", "HEADLINE_ROWS", "PAPER_TABLE_I", "RESULT", "ROWS", "TASKS",
+__all__ = ["BASE_ROWS", "collapse_words", "CONTROLS", "in_grid", "HEADLINE_ROWS", "PAPER_TABLE_I", "RESULT", "ROWS", "TASKS",
            "across_tasks", "against_imitation", "beside_paper", "controls",
            "against_start", "costs", "coverage_figures", "curves", "features",
            "final_logs", "fmt_tv", "summary_lines", "tv_band",

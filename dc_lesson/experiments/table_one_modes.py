@@ -13,7 +13,13 @@ against an alternative (:data:`COMPARATORS`):
   purpose: DC has to beat the best BC a user could have had, not the weaker one;
 * ``dc-noppo`` (DC with its PPO step off: what the density reward's RL term adds),
   ``dc-gailreward`` (Algorithm 2 with a discriminator for log P: whether the density is what
-  matters) and ``gail``.
+  matters) and ``gail``;
+* ``dril``: DRIL, the RL baseline that passed the competence gate (the rerun's only other
+  RL learner).
+
+A comparator whose row is not in the grid's design (:func:`table_one.in_grid`: the rerun
+under the gate has no GAIL and none of DC's diagnostics) is left out of :func:`against` and
+:func:`lines`, not reported as "not run yet".
 
 Each comparison's word is :mod:`verdicts`' for "DC's mode TV is lower" (DC keeps more of the
 expert's modes): *reproduced* (better), *contradicted* (worse), *equal within 0.05*,
@@ -33,7 +39,8 @@ vocabulary (tested on constructed aggregates in ``tests/test_table1.py``).
 from __future__ import annotations
 
 from dc_lesson.experiments.report import fmt_entry
-from dc_lesson.experiments.table_one import TASKS, fmt_tv, judge_entries, paired, tv_band
+from dc_lesson.experiments.table_one import (TASKS, fmt_tv, in_grid, judge_entries, paired,
+                                             tv_band)
 from dc_lesson.experiments import claims, verdicts as V
 from dc_lesson.experiments.table_one_mixture import count_words
 
@@ -46,6 +53,7 @@ COMPARATORS = (
     ("dc-noppo", "DC without its PPO step (what the density reward adds)"),
     ("dc-gailreward", "Algorithm 2 with a discriminator in place of log P"),
     ("gail", "GAIL"),
+    ("dril", "DRIL (the RL baseline that passed the competence gate)"),
 )
 LOW_BAR = 0.5   # a comparator whose episodes mostly arrive nowhere is flagged as a low bar
 
@@ -75,9 +83,11 @@ def best_bc(rec: dict, task: str, actions: str = "mean") -> str | None:
 
 def against(rec: dict, actions: str = "mean") -> dict:
     """``{comparator: {task: (row compared, verdict, paired entry)}}``: DC's mode TV against
-    each comparator, by the lower-is-better rule."""
+    each comparator of the grid (:func:`table_one.in_grid`), by the lower-is-better rule."""
     out: dict = {}
     for comp, _ in COMPARATORS:   # each comparator one Holm family over the tasks
+        if comp != BEST_BC and not in_grid(rec, comp):
+            continue
         rows = {t: best_bc(rec, t, actions) if comp == BEST_BC else comp for t in TASKS}
         entries = {t: paired(rec, "dc", r, t, actions) if r else None for t, r in rows.items()}
         got = judge_entries(entries, "mode_tv", rec, actions, -1)
@@ -124,6 +134,8 @@ def lines(rec: dict, actions: str = "mean") -> list[str]:
     a = against(rec, actions)
     out = []
     for comp, what in COMPARATORS:
+        if comp not in a:
+            continue
         per = a[comp]
         diffs = ", ".join(f"{t} {fmt_entry(e, 'mode_tv', 2)}"
                           + (f" vs `{row}`" if comp == BEST_BC else "")
@@ -163,6 +175,9 @@ def mechanism(rec: dict, actions: str = "mean", competence: dict | str | None = 
         return f"Under the {actions} action, what DC's parts do to the mode TV is " \
                f"{V.NOT_JUDGED}: {why}."
     a = against(rec, actions)
+    if "dc-noppo" not in a or "dc-gailreward" not in a:
+        return (f"Under the {actions} action, what DC's parts do to the mode TV is not asked "
+                f"of this grid: it has no `dc-noppo` or `dc-gailreward` row.")
     rl_better = _tasks(a["dc-noppo"], V.REPRODUCED)
     d_better, d_worse = (_tasks(a["dc-gailreward"], V.REPRODUCED),
                          _tasks(a["dc-gailreward"], V.CONTRADICTED))

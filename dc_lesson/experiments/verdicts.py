@@ -240,9 +240,12 @@ class Verdict:
 
 
 def fmt_num(x: float) -> str:
-    """A difference with digits enough not to print a nonzero value as -0.000."""
+    """A difference with digits enough not to print a nonzero value as -0.000 (below
+    ``limits.NOISE``, float rounding, it is 0)."""
     if not np.isfinite(x):
         return "nan"
+    if abs(x) < _limits.NOISE:
+        x = 0.0
     return f"{x:+.1e}" if x != 0 and abs(x) < 5e-4 else f"{x:+.3f}"
 
 
