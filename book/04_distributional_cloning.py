@@ -639,7 +639,15 @@ if modes_rec is not None:
 # ratio need. Its *mean action* is the mean of the most probable component at the state (the
 # mixture's own mean would lie between the modes), so under the mean action a mixture is
 # still a deterministic function of the state: on the hidden-coin demonstrations only its
-# *sampled* actions can split one start state between targets. The rows:
+# *sampled* actions can split one start state between targets.
+#
+# Each component's spread has a floor, $\sigma_k(s) \ge e^{-2}$. Without one, the likelihood
+# of a mixture density network grows without bound as a component shrinks onto the
+# demonstration pairs it alone explains (Bishop 1994), and our deterministic experts'
+# demonstrations invite exactly that: at the first floor, $e^{-5}$, the mixture BC's mean
+# action scored about a quarter of plain BC's return on `reacher4`, and no number of epochs
+# closed the gap (`nn.mixture`'s docstring has the measurements, `tests/test_mixture.py` the
+# effect on a small regression). The rows:
 #
 # ```
 # bc-mix        BC (Eq. 1, the mixture's log-density) on all 18 demonstrations, trained
@@ -881,8 +889,9 @@ if t1 is not None:
 # ### The first grid's mixture
 #
 # The first grid trained the mixture BC for 200 epochs, as `bc-full`, without matching it to
-# plain BC, and started its DC from `bc-mixstart` (the mixture BC with every spread reset to
-# e^-0.5). Its comparisons, by the same rule (`dc-mix - bc-mixstart` is the loop against that
+# plain BC, with the spreads' first floor $e^{-5}$ (the cause of its weakness, found when the
+# rerun's mixture could not be matched), and started its DC from `bc-mixstart` (the mixture BC
+# with every spread reset to e^-0.5). Its comparisons, by the same rule (`dc-mix - bc-mixstart` is the loop against that
 # exploring start):
 
 # %%

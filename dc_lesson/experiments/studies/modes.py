@@ -46,7 +46,10 @@ on seeds whose start matched: an unmatched seed's mixture rows are named ``ROW
 (unmatched)`` in the aggregate (:func:`observations`), shown in the table and paired with
 nothing, since a weaker start would make any comparison with the Gaussian rows a
 comparison of starts (the first grid's mixture BC was weaker than plain BC on every task).  The mixture's component spreads are set to the gate's exploration noise
-(``algorithms.base.START_LOG_STD``), as every other start's.
+(``algorithms.base.START_LOG_STD``), as every other start's.  Its spreads are floored at
+``nn.mixture.LOG_STD_MIN`` (e^-2; the first grid's e^-5 let the mixture's likelihood
+shrink a component onto its own pairs, and no number of epochs matched plain BC: the
+module's docstring has the measurements); the floor is part of a mixture cell's identity.
 
 Not run: GAIL and its variants and the other baselines that failed the competence gate
 (``learners`` in the aggregate says why); the first grid's DC diagnostics (``dc-noppo``,
@@ -65,6 +68,7 @@ from dc_lesson import evaluation as _evaluation
 from dc_lesson.algorithms import base as _base
 from dc_lesson.algorithms import bc as _bc
 from dc_lesson.data import store as _store
+from dc_lesson.nn import mixture as _mixture
 from dc_lesson.experiments import cells, protocol
 from dc_lesson.experiments.studies import _common, _imitation as _im
 from dc_lesson.experiments.studies import benchmark as _bench
@@ -140,7 +144,8 @@ def cells_at(b) -> list[cells.Cell]:
                 cfg = _im.without_seed(json.loads(learner_config(row, b, task, seed).to_json()))
                 extra = {"row_start": row.start, "demo_variant": _demo_variant(row),
                          "match": {"seed": MATCH_SEED, "episodes": MATCH_EPISODES,
-                                   "tolerance": MATCH_TOLERANCE, "scales": list(MATCH_SCALES)}
+                                   "tolerance": MATCH_TOLERANCE, "scales": list(MATCH_SCALES),
+                                   "log_std_min": _mixture.LOG_STD_MIN}
                          if row.start == "mix" else None}
                 c = _im.learner_cell(NAME, row.learner, task, seed, b, cfg,
                                      variant=row.variant, steps=steps, **extra)

@@ -47,6 +47,12 @@ Choices: the mixture rows run on the first ``budget.table1_mixture_seeds`` seeds
 the mixture DC starts from the mixture BC with its component spreads reset to
 e^-0.5 (state-independent), as the Gaussian warm start's log-std is reset, so PPO explores;
 the expert row is evaluated once (its mean action is its behaviour).
+
+Its mixture rows ran with the mixture's spread floor at e^-5
+(``nn.mixture.FIRST_GRID_LOG_STD_MIN``); the library's floor is now e^-2 (``nn.mixture``
+says why), so a mixture cell of this study run today would not repeat its stored numbers.
+The study is superseded by ``modes`` (``studies.SUPERSEDED``) and its stored cells stay the
+record of what ran.
 """
 
 from __future__ import annotations
