@@ -545,9 +545,8 @@ if modes_rec is not None:
 # %%
 if modes_rec is not None:
     for _ in table_one.coverage_figures(
-            modes_rec, {r: r for r in ("expert", "bc", "dc", "dc-lib", "dril")
-                        if r in present or r == "expert"},
-            "mode coverage under the gate, seeds pooled"):
+            modes_rec, {"expert": "expert", "bc": "BC", "dc": "DC", "dc-lib": "DC from bc-lib",
+                        "dril": "DRIL"}, "mode coverage under the gate, seeds pooled"):
         plt.show()
 
 # %% [markdown]
@@ -1032,10 +1031,9 @@ display(Markdown("In short, by their rules, on the files above (mean action for 
 # to match plain BC):
 
 # %%
-for name, rec, study in (("the rerun under the gate", modes_rec, "modes"),
-                         ("the first grid", t1, "table1")):
+for name, rec in (("the rerun under the gate", modes_rec), ("the first grid", t1)):
     if rec is not None:
-        cost = pd.DataFrame(table_one.costs(rec, study=study))
+        cost = pd.DataFrame(table_one.costs(rec))
         print(f"{name}, minutes per cell:")
         display((cost.pivot(index="row", columns="task", values="minutes")
                  .reindex([r for r in table_one.ROWS if r in set(cost["row"])]).round(1)

@@ -816,3 +816,27 @@ def test_float_rounding_prints_as_zero_and_a_small_difference_does_not():
     assert report.fmt(np.mean([0.1, 0.2, -0.3]), -1.0, 1.0) == "0.00 [-1.00, 1.00]"
     assert verdicts.fmt_num(-5.6e-17) == "+0.000"
     assert report.fmt(3e-4) == "3.0e-04" and verdicts.fmt_num(-3e-4) == "-3.0e-04"
+
+
+def test_the_cell_readers_read_the_aggregates_own_study(monkeypatch):
+    """The rerun's coverage figures once drew the first grid's cells: every reader of cells
+    now asks the study the aggregate names (``benchmark``), and an old record without it
+    reads ``table1``."""
+    from dc_lesson.experiments import studies
+    asked = []
+
+    class _Study:
+        def grid(self, b):
+            return []
+
+    def get(name):
+        asked.append(name)
+        return _Study()
+
+    monkeypatch.setattr(studies, "get", get)
+    assert table_one.features({"benchmark": "modes", "budget": "lesson"}, "reacher4", "dc") \
+        is None
+    table_one.final_logs({"benchmark": "modes", "budget": "lesson"}, "dc")
+    table_one.features({"budget": "lesson"}, "reacher4", "dc")
+    assert asked == ["modes", "modes", "table1"]
+    assert table_one.study_of({"benchmark": "modes"}) == "modes"

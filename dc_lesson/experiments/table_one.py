@@ -469,9 +469,10 @@ def features(rec: dict, task: str, row: str, which: str = "final",
         return _cells.read_features(ref.path())["features"] if ref.path().exists() else None
     row, _, part = row.partition(":")
     which = part or which
-    grid = studies.get("table1").grid(_budget.get(rec["budget"]))
+    name = study_of(rec)
+    grid = studies.get(name).grid(_budget.get(rec["budget"]))
     parts = [_cells.read_features(c.path())[which] for c in grid
-             if c.study == "table1" and c.task == task and c.row == row and c.path().exists()
+             if c.study == name and c.task == task and c.row == row and c.path().exists()
              and (seed is None or c.seed == seed)]
     return np.concatenate(parts) if parts else None
 
@@ -483,8 +484,9 @@ def final_logs(rec: dict, row: str) -> list[dict]:
     from dc_lesson import budget as _budget
     from dc_lesson.experiments import cells as _cells, studies
     out = []
-    for c in studies.get("table1").grid(_budget.get(rec["budget"])):
-        if c.study == "table1" and c.row == row and c.path().exists():
+    name = study_of(rec)
+    for c in studies.get(name).grid(_budget.get(rec["budget"])):
+        if c.study == name and c.row == row and c.path().exists():
             r = _cells.read_record(c.path())
             out.append({"task": c.task, "seed": c.seed, **r["result"].get("log_final", {}),
                         "wall_seconds": r["provenance"]["wall_seconds"]})
@@ -599,17 +601,23 @@ def curves(rec: dict, task: str, row: str) -> list[dict]:
     return sorted(out, key=lambda d: d["seed"])
 
 
-def costs(rec: dict, since: str | None = None, until: str | None = None,
-          study: str = "table1") -> list[dict]:
-    """Per (task, row) of ``study``'s cells that have run (``table1``, or ``modes``: the
-    rerun), their cost (:func:`aggregate.costs`: minutes per cell, cells, training seconds
-    per 100,000 interactions), from the cells written between ``since`` and ``until`` (ISO
-    times: cells of different machines must not be averaged into one cost)."""
+def costs(rec: dict, since: str | None = None, until: str | None = None) -> list[dict]:
+    """Per (task, row) of the cells of ``rec``'s study (:func:`study_of`) that have run, their
+    cost (:func:`aggregate.costs`: minutes per cell, cells, training seconds per 100,000
+    interactions), from the cells written between ``since`` and ``until`` (ISO times: cells
+    of different machines must not be averaged into one cost)."""
     from dc_lesson.experiments import aggregate as _agg
-    return _agg.costs(study, rec["budget"], since, until)
+    return _agg.costs(study_of(rec), rec["budget"], since, until)
 
 
-__all__ = ["BASE_ROWS", "collapse_words", "CONTROLS", "in_grid", "HEADLINE_ROWS", "PAPER_TABLE_I", "RESULT", "ROWS", "TASKS",
+def study_of(rec: dict) -> str:
+    """The study whose cells ``rec`` aggregates (``table1``, or ``modes``: the rerun under
+    the gate), so that every reader of cells (:func:`features`, :func:`final_logs`,
+    :func:`costs`) reads that study's and no other's."""
+    return rec.get("benchmark", "table1")
+
+
+__all__ = ["study_of", "BASE_ROWS", "collapse_words", "CONTROLS", "in_grid", "HEADLINE_ROWS", "PAPER_TABLE_I", "RESULT", "ROWS", "TASKS",
            "across_tasks", "against_imitation", "beside_paper", "controls",
            "against_start", "costs", "coverage_figures", "curves", "features",
            "final_logs", "fmt_tv", "summary_lines", "tv_band",
