@@ -646,7 +646,10 @@ if modes_rec is not None:
 # demonstrations invite exactly that: at the first floor, $e^{-5}$, the mixture BC's mean
 # action scored about a quarter of plain BC's return on `reacher4`, and no number of epochs
 # closed the gap (`nn.mixture`'s docstring has the measurements, `tests/test_mixture.py` the
-# effect on a small regression). The rows:
+# effect on a small regression). The floor has a price under sampled actions: it is wider
+# than the spread plain BC learns on these demonstrations, so a mixture's sampled episodes
+# act more noisily than plain BC's and may arrive less often; the tables show both
+# evaluations and each row's arrivals. The rows:
 #
 # ```
 # bc-mix        BC (Eq. 1, the mixture's log-density) on all 18 demonstrations, trained
