@@ -647,9 +647,9 @@ if modes_rec is not None:
 # action scored about a quarter of plain BC's return on `reacher4`, and no number of epochs
 # closed the gap (`nn.mixture`'s docstring has the measurements, `tests/test_mixture.py` the
 # effect on a small regression). The floor has a price under sampled actions: it is wider
-# than the spread plain BC learns on these demonstrations, so a mixture's sampled episodes
-# act more noisily than plain BC's and may arrive less often; the tables show both
-# evaluations and each row's arrivals. The rows:
+# than the spread plain BC learned on `reacher4` (`nn.mixture`'s docstring), so a
+# mixture's sampled episodes act more noisily than plain BC's and may arrive less often;
+# the tables show both evaluations and each row's arrivals. The rows:
 #
 # ```
 # bc-mix        BC (Eq. 1, the mixture's log-density) on all 18 demonstrations, trained

@@ -30,7 +30,8 @@ to different modes.
 component's spread shrinks onto the pairs it alone explains (Bishop 1994); the usual remedy is
 a floor on the spread.  The first floor, e^-5, let that happen on our deterministic experts'
 demonstrations: the mixture BC's mean action scored 0.21 scaled return on ``reacher4`` (seed 0,
-18 demonstrations, 10 episodes, ``studies.modes``' match episodes) against plain BC's 0.85,
+18 demonstrations, 10 episodes, ``studies.modes``' match episodes) against plain BC's 0.85
+(whose own learned log-std was -5.25),
 and a single component with a state-dependent spread 0.02; with the floor at e^-3, 0.67; at
 e^-2, 0.83 (and 1.01 against plain BC's 0.94 on ``halfcheetah2``).  A state-independent
 spread per component (the Gaussian policy's form, K times) did not help (0.04: a component
