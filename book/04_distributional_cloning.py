@@ -51,7 +51,7 @@ import torch
 from IPython.display import Markdown, display
 
 from dc_lesson.algorithms import bc, dc
-from dc_lesson.experiments import claims, report, table_one
+from dc_lesson.experiments import claims, competence, report, table_one
 from dc_lesson import evaluation, notebook
 from dc_lesson.viz import plots
 from dc_lesson.storage import read_result
@@ -271,8 +271,8 @@ stored = table_one.load()
 pair = table_one.paired(stored, "dc", "bc", LIVE_TASK) if stored else None
 if pair:     # the same comparison in the stored Table I cells, over their seeds
     display(Markdown(
-        f"The stored Table I cells (below) ran this comparison on {LIVE_TASK} at the full "
-        f"interactions over {pair['n_seeds']} seeds: DC minus its BC start, EMD "
+        f"The first grid of Table I (below) ran this comparison on {LIVE_TASK} at its "
+        f"300,000 interactions over {pair['n_seeds']} seeds: DC minus its BC start, EMD "
         f"{table_one.said(pair, 'emd', stored)}; scaled return "
         f"{table_one.said(pair, 'scaled_return', stored)} (mean action, the rule's 95% t "
         f"interval and word)."))
@@ -281,7 +281,7 @@ if pair:     # the same comparison in the stored Table I cells, over their seeds
 # ## The first experiment: experts that flip a hidden coin
 #
 # Our first experiment used experts that chose their mode by a coin flip per episode that
-# nothing in the observation reveals. Table I's study keeps it as its coin rows
+# nothing in the observation reveals. The first grid of Table I kept it as its coin rows
 # (`dc-lesson sweep table1`): on the first 18 hidden-coin demonstrations, the 70/30 BC start
 # (`bc-coin`), DC from it (`dc-coin`) and GAIL from it (`gail-coin`, chapter 2's benchmark),
 # 10 seeds on the reachers and 5 on `halfcheetah2`, every policy scored as every Table I row:
@@ -390,7 +390,9 @@ plt.show()
 #   into the reward, and our scaled reward (capped at the expert's median log-density) makes
 #   every target equally good, so nothing in it pays for reaching a second one. The toy's
 #   prediction for DC: its RL term alone keeps no modes, so what keeps them should be its BC
-#   term and its start. Table I tests that prediction below (*So, does DC keep the modes?*).
+#   term and its start. The first grid of Table I tests that prediction below (*Why, in the
+#   light of the toy*), against DC with its PPO step off and with a discriminator in place of
+#   $\log P_\omega$.
 #
 # **An experiment where either answer is possible.** The multi-mode experts now choose their
 # mode from the observed start state: the reachers go to the target nearest the fingertip's
@@ -430,7 +432,7 @@ display(pd.DataFrame(rows).fillna(""))
 # The paper's Table I asks which learner keeps the expert's modes on the three multi-mode
 # tasks. This book asked it twice. The first grid (after this section, as the record)
 # ran every learner at its preset for 300,000 interactions before chapter 5's competence gate
-# existed, with a mixture BC weaker than plain BC on every task. This grid is the answer
+# existed, with an unmatched mixture BC (see the first grid). This grid is the answer
 # (`dc-lesson sweep modes`, `experiments.studies.modes`, aggregate `modes.json`): only BC and
 # the learners that passed the gate (DC and DRIL), with the gate's settings, at the
 # benchmark's interactions; 18 demonstrations; 10 seeds on every task; 50 fresh evaluation
@@ -473,8 +475,10 @@ else:
 
 # %% [markdown]
 # Lower is better for EMD, KL, RKL and mode TV; higher for the scaled return (0 random, 1
-# expert). "Collapsed seeds" counts the seeds whose largest mode took at least 0.8 of their
-# episodes.
+# expert). "Collapsed seeds" counts the seeds in which at most 0.2 of the episodes reach a
+# mode other than the seed's largest; episodes arriving nowhere reach none, so the `arrived`
+# column says whether a seed collapsed onto a mode or went nowhere. An interval over fewer
+# than 5 seeds is shown but is too wide to read.
 #
 # **Across the three tasks** (the headline, as chapter 6 gives Table III's, after rliable:
 # Agarwal et al. 2021). Per row, the interquartile mean over tasks and seeds with its
@@ -559,7 +563,8 @@ if modes_rec is not None:
 # interest (0.05 scaled return or mode share; for EMD the expert-vs-expert EMD on the task);
 # *contradicted* the same on the other side; *equal within B* if the whole 95% interval lies
 # inside ±B; *inconclusive* otherwise; *not judged* (with the reason) on fewer than 5 paired
-# seeds or where a learner compared has not passed the gate. The verdict column counts the
+# seeds, where a learner compared has not passed the gate, or on a grid that ran before the
+# gate's settings. The verdict column counts the
 # tasks. Each test is narrower than the claim's wording, and the evidence column names it:
 # "DC preserves all modes" is DC's mode TV against its own BC start's, and "GAIL collapses"
 # is the share of GAIL's episodes that reach a mode other than its largest, against its
@@ -571,13 +576,19 @@ if modes_rec is not None:
 # mode answer further down compares DC with the alternatives that matter.
 
 # %%
+def brief(frame):
+    """Every gate reason in a table cut to its head (`competence.brief`): the prose says the
+    full reasons once."""
+    return frame.map(lambda x: competence.brief(x) if isinstance(x, str) else x)
+
+
 if modes_rec is not None:
     for actions in ("mean", "sampled"):
         print(f"\n{actions} action")
         with pd.option_context("display.max_colwidth", None):
-            display(pd.DataFrame([{"claim": v.claim, "verdict": v.verdict,
-                                   "evidence": v.evidence} for v in _claims_t1.verdicts(
-                                       actions=actions, result="modes.json")])
+            display(brief(pd.DataFrame([{"claim": v.claim, "verdict": v.verdict,
+                                         "evidence": v.evidence} for v in _claims_t1.verdicts(
+                                             actions=actions, result="modes.json")]))
                     .set_index("claim"))
 
 # %% [markdown]
@@ -589,7 +600,7 @@ if modes_rec is not None:
 # %%
 def show_controls(rec):
     with pd.option_context("display.max_colwidth", None, "display.width", 250):
-        display(pd.DataFrame(table_one.controls(rec)).set_index(["question", "task"]))
+        display(brief(pd.DataFrame(table_one.controls(rec))).set_index(["question", "task"]))
 
 
 if modes_rec is not None:
@@ -643,9 +654,9 @@ if modes_rec is not None:
 # Each component's spread has a floor, $\sigma_k(s) \ge e^{-2}$. Without one, the likelihood
 # of a mixture density network grows without bound as a component shrinks onto the
 # demonstration pairs it alone explains (Bishop 1994), and our deterministic experts'
-# demonstrations invite exactly that: at the first floor, $e^{-5}$, the mixture BC's mean
-# action scored about a quarter of plain BC's return on `reacher4`, and no number of epochs
-# closed the gap (`nn.mixture`'s docstring has the measurements, `tests/test_mixture.py` the
+# demonstrations invite exactly that: at the first floor, $e^{-5}$, the first grid's mixture
+# BC fell well short of plain BC's return (its `bc-mix` and `bc-full` rows below), and no
+# number of epochs closed the gap (`nn.mixture`'s docstring has the measurements, `tests/test_mixture.py` the
 # effect on a small regression). The floor has a price under sampled actions: it is wider
 # than the spread plain BC learned on `reacher4` (`nn.mixture`'s docstring), so a
 # mixture's sampled episodes act more noisily than plain BC's and may arrive less often;
@@ -664,8 +675,8 @@ if modes_rec is not None:
 #
 # A seed whose mixture never matches plain BC keeps its rows, named `bc-mix (unmatched)` and
 # `dc-mix (unmatched)` in the tables above, and pairs with nothing: a weaker start would
-# make the comparison one of starts (the first grid's mixture BC, unmatched, was weaker
-# than plain BC on every task). Every comparison below is paired by seed over the matched
+# make the comparison one of starts (as with the first grid's unmatched mixture BC). Every
+# comparison below is paired by seed over the matched
 # mixture seeds (the first 5 of each task), and each gets the rule's word for "the mixture
 # row is better" (lower mode TV and EMD, higher scaled return). `bc-mix - bc-full` and
 # `bc-mix-coin - bc-full-coin` change the policy class and nothing else; `dc-mix - bc-mix`
@@ -681,8 +692,9 @@ def show_mixture(rec):
     for actions in ("mean", "sampled"):
         display(Markdown(f"**{actions} action**\n\n"
                          + "\n".join(table_one_mixture.lines(rec, actions))))
+    print("sampled action, measure by measure:")
     with pd.option_context("display.max_colwidth", None, "display.width", 250):
-        display(pd.DataFrame(table_one_mixture.table(rec, "sampled"))
+        display(brief(pd.DataFrame(table_one_mixture.table(rec, "sampled")))
                 .set_index(["demonstrations", "a - b", "task"])
                 .drop(columns="isolates"))
 
@@ -734,7 +746,8 @@ if modes_rec is not None:
 #
 # The first grid ran before chapter 5's competence gate existed, so it judged learners that
 # later failed the gate (GAIL, PWIL, NDI, GPRIL) and ran each at its preset for 300,000
-# interactions; its mixture BC was weaker than plain BC on every task; `halfcheetah2` had 5
+# interactions; its mixture BC fell short of plain BC's return (its mixture comparisons
+# below); `halfcheetah2` had 5
 # seeds. It stays here as the record: its tables, its claims and controls, and DC's own
 # diagnostics (DC without its PPO step, with the paper's raw reward, with a discriminator in
 # place of $\log P_\omega$), which the rerun does not repeat because they explain DC rather
@@ -764,14 +777,7 @@ else:
             display(frame)
 
 # %% [markdown]
-# **Across the three tasks** (the headline, as chapter 6 gives Table III's, after rliable:
-# Agarwal et al. 2021). Per row, the interquartile mean over tasks and seeds with its
-# stratified bootstrap interval, on EMD and on scaled return, and the probability that a DC
-# run does better than a run of the row on the same task (lower EMD, higher return; ties
-# count half). EMD's scale differs by task (compare the `expert` rows of halfcheetah2 and of
-# the reachers above), so its IQM is of EMD *in expert floors*: each run's EMD over the
-# expert row's mean EMD on its task, 1 being as close as a second sample of the expert.
-# These are descriptive: the words per task are the claims' and the controls' below.
+# Across the three tasks, computed as for the rerun:
 
 # %%
 if t1 is not None:
@@ -780,9 +786,7 @@ if t1 is not None:
         display(pd.DataFrame(table_one.across_tasks(t1, actions)).set_index("row"))
 
 # %% [markdown]
-# Lower is better for EMD, KL, RKL and mode TV; higher for the scaled return (0 random, 1
-# expert). "Collapsed seeds" counts the seeds whose largest mode took at least 0.8 of their
-# episodes. Where each policy goes, every seed pooled (mean action):
+# Where each policy goes, every seed pooled (mean action):
 
 # %%
 if t1 is not None:
@@ -794,26 +798,16 @@ if t1 is not None:
 # %% [markdown]
 # ### Its claims, and what the controls say
 #
-# Each claim was declared before the numbers (`dc_lesson.experiments.claims`): one primary
-# measure, one paired comparison, and the book's one rule (`experiments.verdicts`): a paired
-# t-test per task, Holm-adjusted across the claim's three tasks. *Reproduced* if the mean
-# difference is on the paper's side with adjusted p < 0.05 and at least the smallest effect of
-# interest (0.05 scaled return or mode share; for EMD the expert-vs-expert EMD on the task);
-# *contradicted* the same on the other side; *equal within B* if the whole 95% interval lies
-# inside ±B; *inconclusive* otherwise; *not judged* (with the reason) on fewer than 5 paired
-# seeds. The verdict column counts the tasks. Each test is
-# narrower than the claim's wording, and the evidence column names it: "DC preserves all
-# modes" is DC's mode TV against its own BC start's, "the baselines" in the return claim is
-# GAIL, and "GAIL collapses" is the share of GAIL's episodes that reach a mode other than its
-# largest, against its start's (an episode that arrives nowhere reaches none: until the
-# rerun the test read the largest mode's share, under which a seed arriving nowhere in most
-# episodes looked uncollapsed; changed after the hidden-coin GAIL's 78% of such episodes
-# was read, and said). Under sampled
-# actions that start is the exploring policy (the warm start's spread reset to e^-0.5), whose
-# episodes mostly arrive nowhere on the reachers (Table I's sampled `bc` row), so a sampled
-# *reproduced* against `bc` clears a low bar; the mode answer further down compares DC with
-# the alternatives that matter. Under both evaluations (the first grid's, whatever grid the
-# book's claims read):
+# The claims and the rule are the rerun's, with two differences: "the baselines" in the
+# return claim is GAIL, and "GAIL collapses" read the largest mode's share until the rerun
+# (a seed arriving nowhere in most episodes then looked uncollapsed; the test changed to the
+# share reaching a mode other than the largest after the hidden-coin GAIL's `none` share,
+# in the coin table above, was read, and said). Every word here is *not judged* where a
+# learner compared failed the gate or, as for every row of this grid, ran before the gate's
+# settings; the intervals stay as the record. Under sampled actions the start is the
+# exploring policy, whose episodes mostly arrive nowhere on the reachers (the sampled `bc`
+# row above). Under both evaluations (the first grid's, whatever grid the book's claims
+# read):
 
 # %%
 if t1 is not None:
@@ -824,8 +818,9 @@ if t1 is not None:
               if v.claim in table_claims]
         print(f"\n{actions} action")
         with pd.option_context("display.max_colwidth", None):
-            display(pd.DataFrame([{"claim": v.claim, "verdict": v.verdict,
-                                   "evidence": v.evidence} for v in vs]).set_index("claim"))
+            display(brief(pd.DataFrame([{"claim": v.claim, "verdict": v.verdict,
+                                         "evidence": v.evidence} for v in vs]))
+                    .set_index("claim"))
 
 # %% [markdown]
 # The same comparisons in words, task by task, each on its own (no Holm family): lower EMD
@@ -840,10 +835,7 @@ if t1 is not None:
             display(Markdown(f"**{actions} action**\n\n" + "\n".join(f"* {x}" for x in lines)))
 
 # %% [markdown]
-# The controls ask "is `a` better than `b`?" on the measure named (lower EMD, higher scaled
-# return) and get the rule's words (`table_one.controls`, Holm across each control's three
-# tasks): *reproduced* (better), *contradicted* (worse), *equal within B*, *inconclusive*, or
-# *not judged* with its reason.
+# The controls, as for the rerun:
 
 # %%
 if t1 is not None:
@@ -854,8 +846,9 @@ if t1 is not None:
 #
 # The rerun's answer above, by the same rule and the same comparators, asked of the first
 # grid, where three more ran: DC with its PPO step off and Algorithm 2 with a discriminator in
-# place of $\log P_\omega$ (together: what the density reward adds), and GAIL. Its learners
-# had not passed the gate when it ran, so a word here rests on them as they were.
+# place of $\log P_\omega$ (together: what the density reward adds), and GAIL. Every word
+# here is *not judged*: the grid ran before the gate's settings. The intervals are shown as
+# the record.
 
 # %%
 if t1 is not None:
@@ -878,11 +871,12 @@ if t1 is not None:
                                 for actions in ("mean", "sampled"))))
 
 # %% [markdown]
-# Where the PPO step does lower the mode TV against BC continuation, the toy's prediction
+# No rule judges this here (the lines above say why); read the intervals as description.
+# Where DC's mode TV is below BC continuation's, the toy's prediction
 # fails in its strong form: the toy has one fixed density and no BC term, while DC's reward
 # is refitted and its PPO step is averaged with a BC step, and on a task with several
 # targets the RL step can move episodes between targets without any reward for a second
-# mode. Table I's mode shares of `dc` and `dc-noppo`, task by task, show where the episodes
+# mode. The first grid's mode shares of `dc` and `dc-noppo` (its table above) show where the episodes
 # went. The mixture sections (the rerun's above, the first grid's below) ask the remaining
 # question, whether a policy class that can hold several modes at one state changes the
 # answer.
@@ -925,11 +919,12 @@ if t1 is not None:
 #
 # The return of the *stochastic* training episodes as they finish, DC's (π' sampling) and
 # GAIL's, against environment steps; mean and range over seeds, interpolated to a common grid.
-# From the Table I cells (realizable experts).
+# From the first grid's cells (`table1.json`, realizable experts).
 # Read it with its confound in mind: these returns are earned at each learner's own
 # exploration noise, and Table I's GAIL starts at a log-std of $-2$ while DC starts at
-# $-0.5$, so GAIL's early episodes are quieter, not necessarily better; the claim judged on
-# them (`claims.FASTER`) inherits that. Chapter 6's Figure 11 measures the same question with
+# $-0.5$, so GAIL's early episodes are quieter, not necessarily better. No claim is judged
+# on these curves (`claims.FASTER` is judged on Hopper in chapter 6), and GAIL failed the
+# competence gate. Chapter 6's Figure 11 measures the same question with
 # deterministic evaluations at checkpoints.
 
 
@@ -938,7 +933,7 @@ def training_curves(task):
     """{learner: [(steps, returns) per seed]} from table1's DC and GAIL rows."""
     out = {}
     for row, name in (("dc", "DC"), ("gail", "GAIL")):
-        for c in table_one.curves(t1, task, row):
+        for c in (table_one.curves(t1, task, row) if t1 is not None else []):
             pts = [(x, y) for x, y in zip(c["steps"], c["episode_return"]) if y is not None]
             if pts:
                 out.setdefault(name, []).append(np.array(pts))
@@ -965,8 +960,8 @@ plt.show()
 # %% [markdown]
 # ## Does the update converge? (the paper's Figure 6)
 #
-# The L1 norm of the change of π's parameters in each iteration, every DC run, with the loop
-# boundary (where P_ω is refitted) dotted. Read it for what it can show: a step size that
+# The L1 norm of the change of π's parameters in each iteration, every DC run of the first
+# grid, with the loop boundary (where P_ω is refitted) dotted. Read it for what it can show: a step size that
 # does not grow is *not diverging*, not converging (Adam's steps stay near the learning rate
 # whatever the loss does). The convergence claim is judged on Hopper in chapter 6 by the gap
 # between π and π' before each average, and quoted in the claims table below.
@@ -974,7 +969,7 @@ plt.show()
 # %%
 fig, axes = plt.subplots(1, 3, figsize=(11, 3.2))
 for ax, task in zip(axes, TASKS3):
-    runs = table_one.curves(t1, task, "dc")
+    runs = table_one.curves(t1, task, "dc") if t1 is not None else []
     source = "table1"
     for r in runs:
         change = np.array([np.nan if v is None else v for v in r["param_change_l1"]])
@@ -1031,7 +1026,7 @@ display(Markdown("In short, by their rules, on the files above (mean action for 
 # a like-for-like comparison). Here, the measured wall time of one cell (BC start, the
 # learner, four evaluations), one CPU thread each, mean over the seeds (the rerun's cells are
 # longer: they run the benchmark's interactions, and its mixture BC trains up to three times
-# to match plain BC):
+# to match plain BC; an empty entry: not run yet):
 
 # %%
 for name, rec in (("the rerun under the gate", modes_rec), ("the first grid", t1)):
@@ -1052,14 +1047,17 @@ print(f"this chapter ran in {time.perf_counter() - CHAPTER_START:.0f} s at budge
 #   Hopper in chapter 6.
 # * Its RL term, $\mathbb{E}_q[\log P]$, is mode-seeking by construction (the toy): nothing in
 #   it pays for a second mode. Whether DC's PPO step still lowers the mode TV, and whether the
-#   density is what matters, the mode answer's two comparisons say.
+#   density is what matters, the first grid's two comparisons (*Why, in the light of the
+#   toy*) describe; they are not judged.
 # * With experts that flip a hidden coin, no Markov unimodal policy acting with its mean
 #   action can make its mode independent of its start state, as the coin does; with experts that choose from the start state the question is fair, and the
-#   Table I section judges it claim by claim and control by control, with its intervals.
+#   two Table I sections take it claim by claim and control by control, with intervals.
 # * In the toy, a unimodal policy class, not BC's objective, is what loses a mode at a state.
 #   On the tasks, what a 4-component mixture policy changes against the Gaussian trained the
 #   same way (sampled actions; the mean action of any policy is one mode per state), on the
-#   grid the book's mode claims read (the rerun under the gate once it is complete):
+#   grid the book's mode claims read (the rerun under the gate once it is complete; while
+#   they read the first grid, this compares its unmatched $e^{-5}$ mixture, weaker than
+#   plain BC, so it is a comparison of starts):
 
 # %%
 answer_grid = _claims_t1.table1_result()

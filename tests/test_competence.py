@@ -496,3 +496,13 @@ def test_a_failure_a_standard_library_shares_is_the_algorithm_s_not_ours():
     assert passed and why.startswith(comp.REFERENCE_MATCHED) and "paired seeds" in why
     assert comp.judge_part("learn", "hopper", learn,
                            reference=(False, "no"))[0] is False
+
+
+def test_brief_cuts_a_gate_reason_to_its_head_and_keeps_other_text():
+    from dc_lesson.experiments import competence as gate
+    assert gate.brief(f"not judged: dc {gate.PRE_GATE}") == \
+        "not judged: dc ran before the gate's settings"
+    long = ("not judged on reacher4 (gail failed the competence gate — keep on cartpole: "
+            "ended more than 0.05 below its start on 2 of 10 seeds)")
+    assert gate.brief(long) == "not judged on reacher4 (gail failed the competence gate)"
+    assert gate.brief("inconclusive") == "inconclusive"

@@ -56,6 +56,18 @@ PRE_GATE = ("passed the competence gate, but this grid ran before the gate's set
             "and waits for its rerun under them")
 
 
+def brief(text: str) -> str:
+    """A verdict's reason cut to its head for a table cell: a passed learner's
+    :data:`PRE_GATE` becomes "ran before the gate's settings", a failed learner's reason
+    stops before its " — " details; any other text is returned unchanged (the prose states
+    the full reasons once)."""
+    text = text.replace(PRE_GATE, "ran before the gate's settings")
+    if "failed the competence gate" not in text or " — " not in text:
+        return text
+    head = text.split(" — ")[0]
+    return head + ")" * (head.count("(") - head.count(")"))   # close what the cut left open
+
+
 def under_gate(*grids: dict | None) -> bool:
     """Whether every one of ``grids`` (aggregates) was made under the gate's settings."""
     return bool(grids) and all(g is not None and g.get(GRID_MARK) == RULES for g in grids)
@@ -343,6 +355,6 @@ def sentence(rec: dict) -> str:
 
 
 __all__ = ["AS_REFERENCE", "GRID_MARK", "NAMES", "NOT_DECIDED", "ON_PPO", "PLATEAU_TAIL",
-           "PLATEAU_TOLERANCE", "PRE_GATE", "RESULT", "RULES", "STORED", "beside_control",
+           "PLATEAU_TOLERANCE", "PRE_GATE", "RESULT", "RULES", "STORED", "beside_control", "brief",
            "budgets", "curves", "gate_words", "load", "mapping", "overview", "plateau",
            "reference_table", "resolve", "rows", "sentence", "status", "under_gate"]
