@@ -746,10 +746,11 @@ def test_arrival_lines_say_each_rows_arrivals_and_collapsed_seeds_per_task():
              "mode_shares": {"red": 0.5, "blue": 0.5, "none": 0.0}} for s in range(3)]
     lines = table_one.arrival_lines({"mean": {"observations": obs}}, ("expert", "gail-coin"))
     assert lines == ["* `reacher2`: `expert` arrives at a mode in 1.00 of its episodes, 0.50 "
-                     "of those at its largest mode, 0 of 3 seeds with at least 80% of their "
-                     "arrivals at one mode; `gail-coin` arrives at a mode in 0.20 of its "
-                     "episodes, 1.00 of those at its largest mode, 3 of 3 seeds with at least "
-                     "80% of their arrivals at one mode."]
+                     "of those at its largest mode, 0 of the 3 seeds that arrive anywhere with "
+                     "at least 80% of their arrivals at one mode; `gail-coin` arrives at a "
+                     "mode in 0.20 of its episodes, 1.00 of those at its largest mode, 3 of "
+                     "the 3 seeds that arrive anywhere with at least 80% of their arrivals at "
+                     "one mode."]
 
 
 def test_the_collapse_words_say_which_row_collapses_where_counting_episodes_going_nowhere():

@@ -204,9 +204,9 @@ def arrival_lines(rec: dict, rows, actions: str = "mean") -> list[str]:
             bits.append(f"`{row}` arrives at a mode in {a['arrived']:.2f} of its episodes"
                         + ("" if big is None else
                            f", {big:.2f} of those at its largest mode, "
-                           f"{a['collapsed_among_arrivals']} of {a['seeds_arriving']} seeds "
-                           f"with at least {claims.COLLAPSE_SHARE:.0%} of their arrivals at "
-                           f"one mode"))
+                           f"{a['collapsed_among_arrivals']} of the {a['seeds_arriving']} "
+                           f"seeds that arrive anywhere with at least "
+                           f"{claims.COLLAPSE_SHARE:.0%} of their arrivals at one mode"))
         if bits:
             out.append(f"* `{task}`: " + "; ".join(bits) + ".")
     return out
