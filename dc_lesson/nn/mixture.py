@@ -29,15 +29,16 @@ to different modes.
 **Why the floor is e^-2.**  A mixture density network's likelihood grows without bound as a
 component's spread shrinks onto the pairs it alone explains (Bishop 1994); the usual remedy is
 a floor on the spread.  The first floor, e^-5, let that happen on our deterministic experts'
-demonstrations: the mixture BC's mean action scored 0.21 scaled return on ``reacher4`` (seed 0,
-18 demonstrations, 10 episodes, ``studies.modes``' match episodes) against plain BC's 0.85
-(whose own learned log-std was -5.25),
-and a single component with a state-dependent spread 0.02; with the floor at e^-3, 0.67; at
+demonstrations.  Measured once by a probe on the reference path (not a package command, so
+these figures are a record, not a result the package regenerates): the mixture BC's mean
+action scored 0.21 scaled return on ``reacher4`` (seed 0, 18 demonstrations, the
+``studies.modes`` match episodes) against plain BC's 0.85 (whose own learned log-std was
+-5.25), and a single component with a state-dependent spread 0.02; with the floor at e^-3, 0.67; at
 e^-2, 0.83 (and 1.01 against plain BC's 0.94 on ``halfcheetah2``).  A state-independent
 spread per component (the Gaussian policy's form, K times) did not help (0.04: a component
 still shrinks onto its own pairs).  So the floor is e^-2, about 0.14 of the [-1, 1] action
 range: chapter 04's mixture rows need a mixture BC that matches plain BC before its DC is
-judged.  The first Table I grid ran at e^-5 (``FIRST_GRID_LOG_STD_MIN``) and stays stored
+judged, and the stored evidence that it now can is the ``modes`` cells' match records.  The first Table I grid ran at e^-5 (``FIRST_GRID_LOG_STD_MIN``) and stays stored
 as it ran.  ``tests/test_mixture.py`` checks the floor's effect on a small regression.
 """
 
