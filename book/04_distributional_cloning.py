@@ -660,7 +660,13 @@ if modes_rec is not None:
 # effect on a small regression). The floor has a price under sampled actions: it is wider
 # than the spread plain BC learned on `reacher4` (`nn.mixture`'s docstring), so a
 # mixture's sampled episodes act more noisily than plain BC's and may arrive less often;
-# the tables show both evaluations and each row's arrivals. The rows:
+# the tables show both evaluations and each row's arrivals. So the rerun scores every
+# mixture policy a third way, `components`: at each step the policy draws a component by
+# its weight at that state and acts with that component's mean
+# (`nn.mixture.ComponentMeans`). That keeps what makes the mixture a mixture, weight on
+# several modes, and drops only the noise inside a component, so it asks the mode question
+# of the weights. A Gaussian policy has one component, so its `components` evaluation is its
+# mean action, and the mixture rows pair with their Gaussian controls under it. The rows:
 #
 # ```
 # bc-mix        BC (Eq. 1, the mixture's log-density) on all 18 demonstrations, trained
@@ -688,13 +694,23 @@ if modes_rec is not None:
 # %%
 from dc_lesson.experiments import table_one_mixture
 
+EVALUATION_LABEL = {"mean": "mean action", "sampled": "sampled actions",
+                    "components": "drawn component, acting with its mean"}
+
+
+def evaluations(rec):
+    """The evaluations a grid stored: both grids' mean and sampled, the rerun's components."""
+    return [a for a in EVALUATION_LABEL if a in rec]
+
+
 def show_mixture(rec):
-    for actions in ("mean", "sampled"):
-        display(Markdown(f"**{actions} action**\n\n"
+    for actions in evaluations(rec):
+        display(Markdown(f"**{EVALUATION_LABEL[actions]}**\n\n"
                          + "\n".join(table_one_mixture.lines(rec, actions))))
-    print("sampled action, measure by measure:")
+    last = evaluations(rec)[-1]
+    print(f"{EVALUATION_LABEL[last]}, measure by measure:")
     with pd.option_context("display.max_colwidth", None, "display.width", 250):
-        display(brief(pd.DataFrame(table_one_mixture.table(rec, "sampled")))
+        display(brief(pd.DataFrame(table_one_mixture.table(rec, last)))
                 .set_index(["demonstrations", "a - b", "task"])
                 .drop(columns="isolates"))
 
@@ -704,13 +720,14 @@ if modes_rec is not None:
 
 # %% [markdown]
 # Where the episodes go, seeds pooled: each bar is one row's mean mode shares, under its
-# mean action (left of each pair) and sampled (right, lighter); grey is *none*, the episodes
-# that arrive nowhere. An empty slot is a row with no matched seed yet.
+# mean action (left of each group), sampled (lighter) and, in the rerun, with its drawn
+# component's mean (lightest, right); grey is *none*, the episodes that arrive nowhere. An
+# empty slot is a row with no matched seed yet.
 
 
 # %%
 def mode_share_bars(rec, title):
-    """The realizable and hidden-coin rows' mean mode shares, both evaluations."""
+    """The realizable and hidden-coin rows' mean mode shares, every evaluation stored."""
     groups = {"realizable": ("expert", "bc-full", "bc-mix", "dc", "dc-mix"),
               "hidden coin": ("expert", "bc-full-coin", "bc-mix-coin", "dc-coin",
                               "dc-mix-coin")}
@@ -718,14 +735,16 @@ def mode_share_bars(rec, title):
     for (demos, rows), line in zip(groups.items(), axes):
         for ax, task in zip(line, table_one.TASKS):
             for i, row in enumerate(rows):
-                for j, actions in enumerate(("mean", "sampled")):
+                kinds = evaluations(rec)
+                width = 0.76 / len(kinds)
+                for j, actions in enumerate(kinds):
                     sh = table_one_mixture.shares(rec, task, row, actions)
                     bottom = 0.0
                     for k, (mode, v) in enumerate(sh.items()):
                         color = ("0.75" if mode == "none" else mode
                                  if mode in ("red", "green", "blue", "yellow") else f"C{k}")
-                        ax.bar(i + 0.38 * j - 0.19, v, 0.36, bottom=bottom, color=color,
-                               alpha=1.0 if j == 0 else 0.55,
+                        ax.bar(i - 0.38 + width * (j + 0.5), v, width * 0.95, bottom=bottom,
+                               color=color, alpha=(1.0, 0.55, 0.3)[j],
                                label=mode if (i, j) == (0, 0) else None)
                         bottom += v
             ax.set_xticks(range(len(rows)), [r.removesuffix("-coin") for r in rows],
@@ -1054,7 +1073,8 @@ print(f"this chapter ran in {time.perf_counter() - CHAPTER_START:.0f} s at budge
 #   two Table I sections take it claim by claim and control by control, with intervals.
 # * In the toy, a unimodal policy class, not BC's objective, is what loses a mode at a state.
 #   On the tasks, what a 4-component mixture policy changes against the Gaussian trained the
-#   same way (sampled actions; the mean action of any policy is one mode per state), on the
+#   same way (with each step's component drawn and its mean acted on, where the grid stored
+#   that, else sampled actions; the mean action of any policy is one mode per state), on the
 #   grid the book's mode claims read (the rerun under the gate once it is complete; while
 #   they read the first grid, this compares its unmatched $e^{-5}$ mixture, weaker than
 #   plain BC, so it is a comparison of starts):
@@ -1063,8 +1083,9 @@ print(f"this chapter ran in {time.perf_counter() - CHAPTER_START:.0f} s at budge
 answer_grid = _claims_t1.table1_result()
 answer_rec = table_one.load(answer_grid)
 if answer_rec is not None:
-    print(f"read from {answer_grid}")
-    display(Markdown("\n".join(table_one_mixture.lines(answer_rec, "sampled")[:2])))
+    answer_actions = evaluations(answer_rec)[-1]
+    print(f"read from {answer_grid}, {EVALUATION_LABEL[answer_actions]}")
+    display(Markdown("\n".join(table_one_mixture.lines(answer_rec, answer_actions)[:2])))
 
 # %% [markdown]
 # * The answer to the chapter's question, by the rule of *So, does DC keep the modes?*, on

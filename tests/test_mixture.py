@@ -161,3 +161,46 @@ def test_the_floor_is_the_policys_own_and_survives_saving(tmp_path):
     assert back.log_std_min == -1.5 and back.config()["log_std_min"] == -1.5
     with pytest.raises(ValueError, match="log_std_min"):
         mixture.MixturePolicy(3, 2, log_std_min=mixture.LOG_STD_MAX)
+
+
+def _two_modes(spread: float = 0.5):
+    """A 1-d mixture whose two components sit at -0.8 and +0.8 with equal weight everywhere,
+    each with a wide spread."""
+    pi = mixture.MixturePolicy(2, 1, n_components=2, hidden=(8,), log_std_min=-2.0)
+    with torch.no_grad():
+        pi.head.weight.zero_()
+        pi.head.bias.copy_(torch.tensor([0.0, 0.0, -0.8, 0.8, math.log(spread),
+                                         math.log(spread)]))
+    return pi
+
+
+def test_component_means_draw_a_component_and_act_without_its_noise():
+    """``ComponentMeans`` (the ``"components"`` evaluation): each action is one component's
+    mean, both components are drawn by their weights, and a seed repeats them.  Sampling
+    with the noise would give values off the two means; the mean action one value only."""
+    from scipy import stats
+    pi = _two_modes()
+    obs = np.zeros((4000, 2), np.float32)
+    a = mixture.ComponentMeans(pi, seed=7)(obs)[:, 0]
+    assert np.allclose(np.abs(a), 0.8, atol=1e-6)                      # no within-noise
+    up = int((a > 0).sum())
+    assert stats.binomtest(up, len(a), 0.5).pvalue > 0.001             # weights 1/2, 1/2
+    assert np.array_equal(a, mixture.ComponentMeans(pi, seed=7)(obs)[:, 0])
+    with torch.no_grad():
+        noisy = pi.sample(torch.from_numpy(obs), torch.Generator().manual_seed(7))[:, 0]
+        mode = pi.act(torch.from_numpy(obs))[:, 0]
+    assert float((noisy.abs() - 0.8).abs().mean()) > 0.2                # sampling is noisy
+    assert len(set(mode.tolist())) == 1                                  # the mean: one mode
+
+
+def test_the_components_evaluation_is_the_mean_action_for_a_gaussian():
+    from dc_lesson import evaluation, tasks
+    spec = tasks.spec("cartpole")
+    torch.manual_seed(0)
+    pi = policies.GaussianPolicy(spec.obs_dim, spec.act_dim, hidden=(8,))
+    kw = dict(n_episodes=2, divergences=False)
+    mean = evaluation.evaluate_policy("cartpole", pi, **kw)
+    comp = evaluation.evaluate_policy("cartpole", pi, actions=evaluation.COMPONENTS, **kw)
+    assert comp["returns"] == mean["returns"] and comp["actions"] == "components"
+    with pytest.raises(ValueError, match="actions must be one of"):
+        evaluation.evaluate_policy("cartpole", pi, actions="median", **kw)

@@ -4,6 +4,7 @@ trained until it matches plain BC, and DC from the best BC."""
 import pytest
 
 from dc_lesson import budget
+from dc_lesson.experiments import cells
 from dc_lesson.experiments.studies import benchmark as bm
 from dc_lesson.experiments.studies import modes
 
@@ -79,6 +80,9 @@ def test_a_mixture_dc_cell_starts_from_the_matched_mixture(gate, monkeypatch):
     b, _ = modes.run_cell(dc_mix, ())
     assert a["match"] == b["match"] and a["match"]["tries"]
     assert "start" not in b and b["curve"]
+    for out in (a, b):   # the mixture's third evaluation: a drawn component, its mean action
+        assert set(out["final"]) == set(modes.EVALUATIONS)
+        assert "mode_shares" in out["final"]["components"]
 
 
 def test_an_unmatched_mixture_is_shown_and_paired_with_nothing():
@@ -93,3 +97,23 @@ def test_an_unmatched_mixture_is_shown_and_paired_with_nothing():
     assert [o["row"] for o in obs] == ["bc-mix (unmatched)", "dc-mix (unmatched)", "bc-full"]
     matched = modes.observations([rec("dc", "mix", True, 0.4)], "mean")
     assert matched[0]["row"] == "dc-mix" and matched[0]["matched"]
+
+
+def test_the_components_evaluation_reads_a_gaussians_mean_and_refuses_an_old_mixture_cell():
+    """Under ``"components"`` a Gaussian row is its mean action (one component); a mixture
+    cell stored without that evaluation is an error naming the fix, never its mean action
+    passed off as the drawn components."""
+    def rec(learner, variant, final, match=None):
+        return {"cell": {"learner": learner, "variant": variant, "task": "reacher2",
+                         "seed": 0, "n_demos": 18, "study": "modes"},
+                "config": {"demo_variant": None},
+                "result": {"final": final, **({"match": match} if match else {})}}
+    gauss = rec("bc", "full", {"mean": {"scaled_return": 0.9}, "sampled": {"scaled_return": 0.5}})
+    mix = rec("bc", "mix", {"mean": {"scaled_return": 0.8}, "sampled": {"scaled_return": 0.1},
+                            "components": {"scaled_return": 0.6}}, {"matched": True})
+    got = {o["row"]: o["scaled_return"] for o in modes.observations([gauss, mix], "components")}
+    assert got == {"bc-full": 0.9, "bc-mix": 0.6}
+    old = rec("dc", "mix", {"mean": {"scaled_return": 0.8}, "sampled": {"scaled_return": 0.1}},
+              {"matched": True})
+    with pytest.raises(cells.CellError, match="delete it and run the sweep again"):
+        modes.observations([old], "components")

@@ -9,9 +9,9 @@
 
 from dc_lesson.evaluation import metrics
 from dc_lesson.evaluation import evaluate
-from dc_lesson.evaluation.evaluate import (ACTIONS, EVAL_SEED, MEASURES, CheckpointCurve,
+from dc_lesson.evaluation.evaluate import (ACTIONS, COMPONENTS, EVAL_SEED, MEASURES, CheckpointCurve,
                                            evaluate_both,
                                            evaluate_policy, learner_features, measure)
 
-__all__ = ["ACTIONS", "EVAL_SEED", "MEASURES", "CheckpointCurve", "evaluate", "evaluate_both", "evaluate_policy", "learner_features", "measure",
+__all__ = ["ACTIONS", "COMPONENTS", "EVAL_SEED", "MEASURES", "CheckpointCurve", "evaluate", "evaluate_both", "evaluate_policy", "learner_features", "measure",
            "metrics"]

@@ -13,7 +13,9 @@ By default the policy acts with its mean action (``GaussianPolicy.act``, what
 :func:`rollout.collect` calls for a torch module); ``actions="sampled"`` draws its actions from
 the policy at its learned standard deviation instead (:class:`~dc_lesson.nn.StochasticPolicy`,
 seeded): the policy Eq. 2 of the paper is about, whose mode shares can differ from the mean
-action's (chapter 04).  :func:`evaluate_both` gives the two side by side.  For multi-mode
+action's (chapter 04); ``actions="components"`` draws a mixture policy's component and acts
+with its mean (:class:`~dc_lesson.nn.mixture.ComponentMeans`: the mode question without the
+within-component noise).  :func:`evaluate_both` gives the two side by side.  For multi-mode
 tasks ``mode_tv`` is the total-variation distance of the episodes' mode shares ("none"
 included) from the reference's.  The evaluation episodes start from
 ``EVAL_SEED``'s initial states, none of which is a demonstration's (the demonstrations use
@@ -31,6 +33,7 @@ from dc_lesson.evaluation import metrics as _metrics
 from dc_lesson.data import rollout as _rollout
 from dc_lesson import tasks as _tasks
 from dc_lesson.data import modes as _modes
+from dc_lesson.nn.mixture import ComponentMeans, MixturePolicy
 from dc_lesson.nn.policies import StochasticPolicy
 
 EVAL_SEED = 1000
@@ -71,6 +74,7 @@ def measure(task: str, trajectories, reference: _data.Demonstrations | None,
 
 
 ACTIONS = ("mean", "sampled")
+COMPONENTS = "components"   # a mixture's drawn component, acting with its mean (module docstring)
 
 
 def evaluate_policy(task: str, policy, reference: _data.Demonstrations | None = None, *,
@@ -86,17 +90,24 @@ def evaluate_policy(task: str, policy, reference: _data.Demonstrations | None = 
     with the training data).  With ``keep_features`` the
     result also holds ``features``, the learner's mode features (for coverage plots).
     ``actions``: ``"mean"`` (the mean action) or ``"sampled"`` (actions drawn at the
-    policy's learned std, from a generator seeded by ``seed``).  ``variant``: the scaled
+    policy's learned std, from a generator seeded by ``seed``) or ``"components"`` (a
+    mixture's component drawn by its weight at each step, acting with its mean:
+    :class:`~dc_lesson.nn.mixture.ComponentMeans`; a Gaussian policy's mean action).  ``variant``: the scaled
     return's ends are that expert variant's (``"planner"``), not the task's default expert's.
     """
-    if actions not in ACTIONS:
-        raise ValueError(f"actions must be one of {ACTIONS}, got {actions!r}")
+    if actions not in ACTIONS + (COMPONENTS,):
+        raise ValueError(f"actions must be one of {ACTIONS + (COMPONENTS,)}, got {actions!r}")
     _rollout.check_policy(task, policy)   # before loading anything or running an episode
     if not divergences:
         reference = None
     elif reference is None:
         reference = _data.load_demos(task)
-    acting = policy if actions == "mean" else StochasticPolicy(policy, seed=seed)
+    if actions == "sampled":
+        acting = StochasticPolicy(policy, seed=seed)
+    elif actions == COMPONENTS and isinstance(policy, MixturePolicy):
+        acting = ComponentMeans(policy, seed=seed)
+    else:   # the mean action; a Gaussian's one component acts with its mean
+        acting = policy
     t0 = time.perf_counter()
     trajs = _rollout.collect(task, acting, n_episodes, seed=seed, progress=False)
     t1 = time.perf_counter()
@@ -118,7 +129,7 @@ def evaluate_both(task: str, policy, reference: _data.Demonstrations | None = No
     return {a: evaluate_policy(task, policy, reference, actions=a, **kwargs) for a in ACTIONS}
 
 
-__all__ = ["ACTIONS", "EVAL_SEED", "MEASURES", "evaluate_both", "evaluate_policy",
+__all__ = ["ACTIONS", "COMPONENTS", "EVAL_SEED", "MEASURES", "evaluate_both", "evaluate_policy",
            "learner_features", "measure"]
 
 

@@ -16,6 +16,9 @@ the modes; a mixture can put one component on each.  It is a drop-in for
 * :meth:`act` with ``deterministic=True`` (what mean-action evaluation runs) is the mean of the
   most probable component at that state, not the mixture's mean, which would lie *between*
   the modes;
+* :class:`ComponentMeans` draws the component and acts with its mean (the ``"components"``
+  evaluation of :func:`~dc_lesson.evaluation.evaluate_policy`): the mode question without
+  the within-component noise;
 * :meth:`entropy` has no closed form: a one-sample Monte Carlo estimate, used only for logs.
 
 Choices left open by the literature and made here: the components share one MLP trunk (64-64
@@ -111,13 +114,17 @@ class MixturePolicy(_Normalised):
         comp = (-0.5 * z.pow(2) - log_std - 0.5 * math.log(2 * math.pi)).sum(-1)   # (B, K)
         return torch.logsumexp(log_w + comp, dim=-1)
 
-    def sample(self, obs: torch.Tensor, generator: torch.Generator | None = None) -> torch.Tensor:
-        """A raw (unclipped) action: a component by its weight, then its Gaussian."""
+    def sample(self, obs: torch.Tensor, generator: torch.Generator | None = None,
+               noise: bool = True) -> torch.Tensor:
+        """A raw (unclipped) action: a component by its weight, then its Gaussian (with
+        ``noise=False``, the chosen component's mean: :class:`ComponentMeans`)."""
         log_w, mu, log_std = self.components(obs)
         u = torch.rand(log_w.shape[:-1] + (1,), generator=generator)
         k = torch.searchsorted(log_w.exp().cumsum(-1).clamp(max=1.0), u).clamp(max=self.k - 1)
         idx = k[..., None].expand(*k.shape, self.act_dim)                    # (B, 1, A)
         m = mu.gather(-2, idx).squeeze(-2)
+        if not noise:
+            return m
         s = log_std.gather(-2, idx).squeeze(-2).exp()
         noise = torch.randn(m.shape, generator=generator, dtype=m.dtype)
         return m + s * noise
@@ -143,6 +150,30 @@ class MixturePolicy(_Normalised):
         return -self.log_prob(obs, a)
 
 
+class ComponentMeans:
+    """A numpy batch policy that, at every step and in every environment, draws a component of
+    a :class:`MixturePolicy` by its weight at that state and acts with that component's mean
+    (clipped to the bounds), from its own seeded generator.
+
+    Why: the mixture's sampled actions add its component spread, which the floor keeps at
+    e^-2 or more; on a reacher that noise alone stops the arm arriving anywhere, so sampled
+    actions cannot tell whether the mixture holds several modes.  The mean action (the most
+    probable component) picks one mode per state by construction.  Drawing the component
+    and dropping only the within-component noise asks the mode question of the mixture's
+    weights: does it put weight on several modes where the expert went to several?  For a
+    Gaussian policy (one component) it is the mean action."""
+
+    def __init__(self, policy: MixturePolicy, seed: int = 0):
+        self.policy = policy
+        self.generator = torch.Generator().manual_seed(int(seed))
+
+    def __call__(self, obs):
+        with torch.no_grad():
+            a = self.policy.sample(torch.as_tensor(obs, dtype=torch.float32), self.generator,
+                                   noise=False)
+        return a.clamp(ACTION_LOW, ACTION_HIGH).numpy()
+
+
 _policies._CLASSES["MixturePolicy"] = MixturePolicy   # save_policy / load_policy know it
 
-__all__ = ["FIRST_GRID_LOG_STD_MIN", "LOG_STD_MAX", "LOG_STD_MIN", "MixturePolicy"]
+__all__ = ["ComponentMeans", "FIRST_GRID_LOG_STD_MIN", "LOG_STD_MAX", "LOG_STD_MIN", "MixturePolicy"]

@@ -12,7 +12,13 @@ or the hidden-coin experts' for the ``*-coin`` rows); the RL rows at the benchma
 interactions (``budget.benchmark_steps_for``: no competence curve measures these tasks, so
 they take the longest the curves needed) with the gate's settings
 (``competence.gated_config``); every policy evaluated with its mean action and with sampled
-actions against the fresh reference, as in the first grid.
+actions against the fresh reference, as in the first grid, and a mixture policy also with
+its drawn component acting with that component's mean (``"components"``,
+:class:`~dc_lesson.nn.mixture.ComponentMeans`): the floor's spread (e^-2) alone stops a
+reacher arriving anywhere under sampled actions, so sampled actions cannot say whether the
+mixture holds several modes, and the mean action picks one mode per state by construction.
+A Gaussian row's ``"components"`` evaluation is its mean action (one component), so the
+mixture rows pair with their Gaussian controls under it.
 
 The rows (stage: the order a sweep runs them in):
 
@@ -81,6 +87,9 @@ MATCH_SEED = 5000          # away from the evaluation (1000+), reference (3000) 
 MATCH_EPISODES = 10
 MATCH_TOLERANCE = 0.05     # the verdicts' smallest effect on scaled return
 MATCH_SCALES = (1, 2, 4)   # the mixture's epochs, in multiples of bc_max_epochs
+# the evaluations a mixture cell stores: the two every cell has, and the drawn component
+# acting with its mean (module docstring); a Gaussian row's "components" is its mean action
+EVALUATIONS = (*_t1.ACTIONS, _evaluation.COMPONENTS)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -145,7 +154,8 @@ def cells_at(b) -> list[cells.Cell]:
                 extra = {"row_start": row.start, "demo_variant": _demo_variant(row),
                          "match": {"seed": MATCH_SEED, "episodes": MATCH_EPISODES,
                                    "tolerance": MATCH_TOLERANCE, "scales": list(MATCH_SCALES),
-                                   "log_std_min": _mixture.LOG_STD_MIN}
+                                   "log_std_min": _mixture.LOG_STD_MIN,
+                                   "evaluations": list(EVALUATIONS)}
                          if row.start == "mix" else None}
                 c = _im.learner_cell(NAME, row.learner, task, seed, b, cfg,
                                      variant=row.variant, steps=steps, **extra)
@@ -237,6 +247,11 @@ def run_cell(cell, needs):
             policy = result.policy
     out["train_seconds"] = time.perf_counter() - t0
     out["final"], feats["final"] = _t1._evaluate(cell.task, policy, reference, c, cell.seed)
+    if row.start == "mix":
+        ev = _evaluation.evaluate_policy(cell.task, policy, reference,
+                                         n_episodes=c["eval_episodes"], seed=c["eval_seed"],
+                                         actions=_evaluation.COMPONENTS)
+        out["final"][_evaluation.COMPONENTS] = _im.protocol.measures_of(ev)
     return out, feats
 
 
@@ -255,14 +270,24 @@ def observations(records, actions: str) -> list[dict]:
             key = (cell["task"], cell["seed"], start)
             if key not in seen:
                 seen.add(key)
-                obs.append(_agg.observation(r, res["start"][actions], row=start))
+                obs.append(_agg.observation(r, res["start"][
+                    "mean" if actions == _evaluation.COMPONENTS else actions], row=start))
         extra = {"curve": res.get("curve")}
         row = None
+        if actions not in res["final"]:
+            if actions != _evaluation.COMPONENTS or "match" in res:
+                raise cells.CellError(
+                    f"{cell['study']}/{cell['task']}: the {cell['learner']}-{cell['variant']} "
+                    f"cell of seed {cell['seed']} has no {actions!r} evaluation (a mixture "
+                    f"cell from before it was added); delete it and run the sweep again")
+            actions_here = "mean"      # a Gaussian's one component acts with its mean
+        else:
+            actions_here = actions
         if "match" in res:
             extra["matched"] = res["match"]["matched"]
             if not extra["matched"]:   # shown, paired with nothing (module docstring)
                 row = f"{cell['learner']}-{cell['variant']} (unmatched)"
-        obs.append(_agg.observation(r, res["final"][actions], row=row, **extra))
+        obs.append(_agg.observation(r, res["final"][actions_here], row=row, **extra))
     return obs
 
 
@@ -286,7 +311,8 @@ def aggregate(records, b) -> dict:
            "match": {"seed": MATCH_SEED, "episodes": MATCH_EPISODES,
                      "tolerance": MATCH_TOLERANCE, "scales": list(MATCH_SCALES)},
            _gate.GRID_MARK: _gate.RULES}
-    out.update(_t1.both_evaluations(records, observations, pairs, b.il_eval_episodes))
+    out.update(_t1.both_evaluations(records, observations, pairs, b.il_eval_episodes,
+                                    actions=EVALUATIONS))
     return out
 
 
@@ -295,6 +321,6 @@ STUDY = cells.Study(NAME, "Table I rerun under the gate: the multi-mode tasks, t
                     run_cell=lambda c, n: _common.run_expert_or(c, n, run_cell),
                     aggregate=aggregate, result_file="modes.json")
 
-__all__ = ["FIXED_ROWS", "MATCH_EPISODES", "MATCH_SCALES", "MATCH_SEED", "MATCH_TOLERANCE",
+__all__ = ["EVALUATIONS", "FIXED_ROWS", "MATCH_EPISODES", "MATCH_SCALES", "MATCH_SEED", "MATCH_TOLERANCE",
            "NAME", "PAIRS", "Row", "STUDY", "TASKS", "cells_at", "learner_config",
            "matched_mixture", "observations", "rows", "run_cell", "seeds"]

@@ -304,16 +304,17 @@ PAIRS = (("dc", "bc"), ("dc", "gail"), ("dc", "bc-all"), ("dc", "bc-full"), ("ga
          ("dc-mix", "bc-mixstart"), ("dc-mix-coin", "bc-mixstart-coin"))
 
 
-def both_evaluations(records, observe, pairs, eval_episodes: int) -> dict:
-    """Per evaluation of :data:`ACTIONS`: the table, the expert row, the paired differences of
-    ``pairs`` (the aggregate's measures and the TV of a seed's mode shares from the
+def both_evaluations(records, observe, pairs, eval_episodes: int,
+                     actions: tuple = ACTIONS) -> dict:
+    """Per evaluation of ``actions`` (:data:`ACTIONS`; ``modes`` adds ``"components"``): the
+    table, the expert row, the paired differences of ``pairs`` (the aggregate's measures and the TV of a seed's mode shares from the
     reference's: the mode question's own measure, per seed so that it pairs), the mode
     summary and the observations ``observe(records, actions)`` gives (this study's and
     ``modes``')."""
     from dc_lesson.experiments import aggregate as _agg
     shares = _im.reference_shares(records)
-    out = {}
-    for actions in ACTIONS:
+    out, kinds = {}, actions
+    for actions in kinds:
         obs = observe(records, actions)   # the expert row: its one evaluation in both
         for o in obs:
             ref = shares.get(o["task"])
