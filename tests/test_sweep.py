@@ -159,6 +159,9 @@ def test_a_new_row_is_estimated_from_its_learners_cost_per_interaction():
         0.002 * sweep.interactions(four.config))
     costs[("dc-loops=4", "hopper", "lesson", sweep.interactions(four.config))] = [300.0]
     assert sweep.estimate(four, costs, "lesson", rates) == 300.0   # measured: its own row wins
+    costs[("dc-loops=4", "hopper", "lesson", sweep.interactions(four.config),
+           four.study)] = [200.0]
+    assert sweep.estimate(four, costs, "lesson", rates) == 200.0   # and its own study first
     assert sweep.interactions({"steps": 0}) is None               # BC: no interactions
 
 

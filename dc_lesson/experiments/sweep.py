@@ -97,8 +97,11 @@ def _finished(root=None):
 
 def measured_costs(root=None, since: str | None = None,
                    until: str | None = None) -> dict[tuple, list[float]]:
-    """Wall seconds of every finished cell on disk, by (learner row, task, budget), and for
-    the cells that interact also by (learner row, task, budget, interactions); with
+    """Wall seconds of every finished cell on disk, by (learner row, task, budget), for the
+    cells that interact also by (learner row, task, budget, interactions), and by (learner
+    row, task, budget, interactions or 0, study): a study's own cells first, since the same
+    row of another study can differ in what it does (``modes``' ``bc-full`` trains for 40 s,
+    ``table1``'s took minutes); with
     ``since`` / ``until`` (ISO times, UTC), of the cells finished in [since, until) only."""
     out: dict[tuple, list[float]] = {}
     for r in _finished(root):
@@ -112,6 +115,7 @@ def measured_costs(root=None, since: str | None = None,
         n = interactions(r["config"])
         if n:
             out.setdefault(key + (n,), []).append(r["provenance"]["wall_seconds"])
+        out.setdefault(key + (n or 0, c["study"]), []).append(r["provenance"]["wall_seconds"])
     return out
 
 
@@ -142,13 +146,15 @@ def measured_rates(root=None) -> dict[tuple, list[float]]:
 
 def estimate(cell: _cells.Cell, costs: dict, budget_name: str,
              rates: dict | None = None) -> float | None:
-    """The median measured wall time of cells like this one (same row, task and budget, and
-    for a cell that interacts the same interactions: a row of another study that ran 100,000
-    says little of one that runs 1.8M); else, with ``rates``, the median seconds per
+    """The median measured wall time of this study's cells like this one (same row, task,
+    budget and interactions); else of any study's (a cell that interacts: the same
+    interactions, since a row of another study that ran 100,000 says little of one that runs
+    1.8M); else, with ``rates``, the median seconds per
     interaction of the same learner on the task times this cell's interactions; else the
     same learner's and task's median wall time; or None when none has run."""
     n = interactions(cell.config)
-    v = costs.get((cell.row, cell.task, budget_name) + ((n,) if n else ()))
+    v = (costs.get((cell.row, cell.task, budget_name, n or 0, cell.study))
+         or costs.get((cell.row, cell.task, budget_name) + ((n,) if n else ())))
     per = (rates or {}).get((cell.learner, cell.task, budget_name))
     if not v and per and n:
         return statistics.median(per) * n
