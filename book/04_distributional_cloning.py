@@ -689,7 +689,10 @@ if modes_rec is not None:
 # is the loop against the start it began from (under the mean action exactly: resetting the
 # spreads moves no component's mean or weight; under sampled actions against the mixture
 # BC's learned spread); `dc-mix - dc` changes the start too (the Gaussian DC starts from the
-# paper's 70/30 BC), so it judges the whole recipe.
+# paper's 70/30 BC), so it judges the whole recipe. The mixture DC is an RL learner of its
+# own, so it passes chapter 5's competence gate before any comparison with it is judged
+# (its row there is *DC (mixture policy)*); until then those words read "not judged", with
+# the gate's reason.
 
 # %%
 from dc_lesson.experiments import table_one_mixture

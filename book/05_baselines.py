@@ -428,6 +428,12 @@ if t1 is not None:
 # * **does it learn?** From a weak start (BC stopped after one epoch) on hopper and
 #   halfcheetah, its mean final scaled return over the seeds must reach a floor.
 #
+# Chapter 4's DC with a mixture policy (*DC (mixture policy)*, its `dc-mix` rows) is gated
+# too, as its own row: DC's settings from the start those rows have, the mixture BC trained
+# until it matches plain BC (to keep) or stopped after one epoch (to learn). Where its
+# mixture start never matched plain BC, the keep question is not asked of that task: a
+# start that is not perfect cannot be kept, and the gate says so instead of passing.
+#
 # The thresholds were declared before any cell ran (printed below, from the study), and so
 # were the rules every learner runs with: the start's exploration noise and, on hopper, the
 # fall that ends a training episode, which its expert trained with. Where a probe showed a

@@ -150,8 +150,11 @@ def _drops(learner):
 
 @pytest.mark.parametrize("learner", [pytest.param(
     x, marks=pytest.mark.xfail(strict=True, reason="loses its perfect start today (issue 38)"))
-    if x in FAILS_TODAY else x for x in comp.LEARNERS])
+    if x in FAILS_TODAY else x for x in comp.LEARNERS if x not in comp.VARIANTS])
 def test_a_learner_keeps_a_perfect_cartpole_start(learner):
+    # the mixture variant is left out: at smoke its start (the mixture BC matched to plain BC,
+    # at most 12 epochs) matches on 1 of seeds 0-2 (6 December), so there is no perfect start
+    # to keep; the gate then calls its keep part not informative (the test below)
     import numpy as np
     from scipy import stats as sstats
     d = np.array(_drops(learner))
@@ -506,3 +509,62 @@ def test_brief_cuts_a_gate_reason_to_its_head_and_keeps_other_text():
             "ended more than 0.05 below its start on 2 of 10 seeds)")
     assert gate.brief(long) == "not judged on reacher4 (gail failed the competence gate)"
     assert gate.brief("inconclusive") == "inconclusive"
+
+
+def test_the_mixture_variant_is_dc_from_a_mixture_start_gated_like_every_learner():
+    """``dc-mix`` (chapter 04's mixture DC) runs DC's own gated config from a mixture BC
+    start whose spreads are the gate's exploration noise; its rows, and the coin twin's, are
+    held back by its own gate word, never by DC's."""
+    import torch
+    from dc_lesson.algorithms import base
+    from dc_lesson.data import store
+    from dc_lesson.experiments import verdicts
+    from dc_lesson.nn import mixture
+    lesson = budget.get("lesson")
+    grid = [c for c in studies.get("competence").grid(lesson) if c.seed == 0
+            and c.task == "cartpole" and c.variant == "keep"]
+    mix = next(c for c in grid if c.learner == "dc-mix")
+    plain = next(c for c in grid if c.learner == "dc")
+    assert mix.config["dc-mix"] == plain.config["dc"] and mix.config["start_policy"] == "mixture"
+    assert "start_policy" not in plain.config          # the stored DC cells keep their identity
+    smoke = budget.get("smoke")
+    start, match = comp.mixture_start("cartpole", store.load_demos("cartpole", n_trajectories=4),
+                                      0, smoke, "learn")
+    assert isinstance(start, mixture.MixturePolicy) and match is None   # weak: not matched
+    with torch.no_grad():
+        _, _, log_std = start.components(torch.zeros(3, start.obs_dim))
+    assert torch.allclose(log_std, torch.full_like(log_std, base.START_LOG_STD))
+    held = {"dc-mix": "has not yet shown competence — keep on cartpole: not run yet"}
+    assert verdicts.rows_gate(("dc-mix-coin", "bc-mix-coin"), held).startswith(
+        "dc-mix-coin has not yet shown competence")
+    assert verdicts.rows_gate(("dc-mix",), {"dc": "failed the competence gate — x"}) == \
+        "dc-mix failed the competence gate — x"           # a variant of a failed learner
+    assert verdicts.rows_gate(("dc", "bc-mix"), held) is None
+
+
+def test_a_mixture_start_that_never_matched_plain_bc_leaves_keeping_unasked():
+    """A keep part with a seed whose mixture start did not match plain BC is not informative
+    (None, with the reason), never passed or failed, on all seeds or while seeds are to come."""
+    runs = [{"start": 1.0, "final": 1.0, "curve": [1.0], "matched": True} for _ in range(10)]
+    assert comp.keeps(runs) == (True, "")
+    runs[3] = dict(runs[3], matched=False, start=0.3, final=0.0, curve=[0.0])
+    ok, why = comp.keeps(runs)
+    assert ok is None and "did not match plain BC on 1 of 10 seeds" in why
+    ok, why = comp.so_far("keep", runs[:4], 10)
+    assert ok is None and "did not match" in why
+    assert comp.keeps([dict(r, matched=None) for r in runs[:3]])[0] is not None  # a Gaussian
+
+
+def test_a_mixture_variant_cell_records_its_match_and_the_aggregate_reads_it():
+    """A ``dc-mix`` keep cell runs DC from its matched mixture start and keeps the match
+    record; the aggregate carries whether it matched, which the gate reads."""
+    import torch
+    torch.set_num_threads(1)
+    smoke = budget.get("smoke")
+    cell = next(c for c in studies.get("competence").grid(smoke)
+                if c.learner == "dc-mix" and c.task == "cartpole" and c.variant == "keep")
+    res, _ = comp.run_cell(cell, [])
+    assert set(res["match"]) == {"target", "tries", "matched"} and res["curve"]
+    record = {"cell": cell.identity(), "result": res, "timing": {}}
+    obs = comp.aggregate([record], smoke)["observations"]
+    assert obs[0]["row"] == "dc-mix" and obs[0]["matched"] is res["match"]["matched"]

@@ -18,7 +18,7 @@ from dc_lesson.experiments.studies import competence as _study
 
 RESULT = "competence.json"
 NAMES = {"ppo": "PPO (task reward)", "gail": "GAIL", "dril": "DRIL", "pwil": "PWIL",
-         "ndi": "NDI", "gpril": "GPRIL", "dc": "DC"}
+         "ndi": "NDI", "gpril": "GPRIL", "dc": "DC", "dc-mix": "DC (mixture policy)"}
 
 
 def load(name: str = RESULT) -> dict | None:
@@ -126,7 +126,7 @@ def rows(rec: dict) -> list[dict]:
                                 "dip": gated, "word": "not run yet"})
                     continue
                 ok, why = _study.judge_part(
-                    part, task, [{k: r[k] for k in ("start", "final", "curve")} for r in runs],
+                    part, task, [{k: r.get(k) for k in ("start", "final", "curve", "matched")} for r in runs],
                     knife, refs.get((learner, part, task)), needed.get(part))
                 dip = max(r["start"] - min(r["curve"] or [r["final"]]) for r in runs)
                 short = len(runs) < needed.get(part, 0)

@@ -115,7 +115,7 @@ def measured_costs(root=None, since: str | None = None,
         n = interactions(r["config"])
         if n:
             out.setdefault(key + (n,), []).append(r["provenance"]["wall_seconds"])
-        out.setdefault(key + (n or 0, c["study"]), []).append(r["provenance"]["wall_seconds"])
+        out.setdefault(key + (n or 0, c.get("study")), []).append(r["provenance"]["wall_seconds"])
     return out
 
 
@@ -155,12 +155,15 @@ def estimate(cell: _cells.Cell, costs: dict, budget_name: str,
     n = interactions(cell.config)
     v = (costs.get((cell.row, cell.task, budget_name, n or 0, cell.study))
          or costs.get((cell.row, cell.task, budget_name) + ((n,) if n else ())))
-    per = (rates or {}).get((cell.learner, cell.task, budget_name))
+    # a variant row of a learner (competence's ``dc-mix``) is priced by its learner's cells
+    per = ((rates or {}).get((cell.learner, cell.task, budget_name))
+           or (rates or {}).get((cell.learner.split("-")[0], cell.task, budget_name)))
     if not v and per and n:
         return statistics.median(per) * n
     if not v:
         v = [s for (row, task, b, *_), w in costs.items() if not _ for s in w
-             if b == budget_name and task == cell.task and row.split("-")[0] == cell.learner]
+             if b == budget_name and task == cell.task
+             and row.split("-")[0] == cell.learner.split("-")[0]]
     return statistics.median(v) if v else None
 
 

@@ -271,9 +271,14 @@ def competence_gate(claim: Claim, competence: dict | None) -> str | None:
 
 def rows_gate(rows, competence: dict | None) -> str | None:
     """:func:`competence_gate` for a comparison given by its rows (a paired entry's ``a`` and
-    ``b``): the first row whose learner is in ``competence``, with its phrase."""
+    ``b``): the first row whose learner is in ``competence``, with its phrase.  A row's
+    learner is the row itself or its longest leading hyphen-part that the mapping names
+    (``dc-mix-coin``: ``dc-mix``, a gated variant, before ``dc``; ``dc@lr``, ``gail (x)``:
+    ``dc``, ``gail``)."""
     for row in rows:
-        for name in (row, row.split("-")[0].split("@")[0].split(" ")[0]):
+        parts = row.split("@")[0].split(" ")[0].split("-")
+        names = [row] + ["-".join(parts[:i]) for i in range(len(parts), 0, -1)]
+        for name in names:
             if competence and name in competence:
                 return f"{row} {competence[name]}"
     return None

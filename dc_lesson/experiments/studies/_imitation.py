@@ -68,7 +68,8 @@ def check_config(cell, current: dict) -> None:
                               f"changed since the cell was listed; list the study again")
 
 
-def train_from_start(cell, cfg, demos, start, evaluate, log=None, checkpoint=None) -> dict:
+def train_from_start(cell, cfg, demos, start, evaluate, log=None, checkpoint=None,
+                     algorithm: str | None = None) -> dict:
     """One RL cell's run from its seed's ``start`` (the competence, benchmark and ablations
     studies): the learner's ``cfg`` for the cell's ``steps``, mean-action checkpoints
     (``curve_points`` of ``curve_episodes`` episodes over ``curve_total`` interactions,
@@ -76,7 +77,8 @@ def train_from_start(cell, cfg, demos, start, evaluate, log=None, checkpoint=Non
     policy's measures on ``eval_episodes`` episodes; ``evaluate(policy, n_episodes)``
     scores a policy as the study does (``checkpoint``, if given, at the checkpoints);
     ``log``: a function of the learner's training log whose value the result keeps as
-    ``log``."""
+    ``log``; ``algorithm``: the registered learner to run, when the cell's row is a variant
+    of it (``competence``'s ``dc-mix``)."""
     import time
     from dc_lesson import algorithms as _algorithms
     from dc_lesson import evaluation as _evaluation
@@ -85,7 +87,7 @@ def train_from_start(cell, cfg, demos, start, evaluate, log=None, checkpoint=Non
     at = checkpoint or evaluate
     curve = _evaluation.CheckpointCurve(lambda p: at(p, c["curve_episodes"]),
                                         c.get("curve_total", c["steps"]), c["curve_points"])
-    result = _algorithms.get(cell.learner).train(cell.task, demos, cfg,
+    result = _algorithms.get(algorithm or cell.learner).train(cell.task, demos, cfg,
                                                  policy=copy.deepcopy(start), progress=False,
                                                  callback=curve)
     return {"start": protocol.measures_of(evaluate(start, c["eval_episodes"])),

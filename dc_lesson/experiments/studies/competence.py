@@ -53,9 +53,26 @@ from dc_lesson.algorithms import bc as _bc
 from dc_lesson.data import store as _store
 from dc_lesson.experiments import cells, protocol
 from dc_lesson.experiments.studies import _common, _imitation as _im
+from dc_lesson.experiments.studies import table1 as _t1
+from dc_lesson.nn import mixture as _mixture
 
 NAME = "competence"
-LEARNERS = ("ppo", "gail", "dril", "pwil", "ndi", "gpril", "dc")
+# The mixture variants the book judges (issue 38 asks for them too): DC with the
+# 4-component mixture policy (``nn.mixture``), chapter 04's ``dc-mix`` rows.  Its cells run
+# DC's own gated config from the start those rows have (:func:`mixture_start`): to keep, the
+# mixture BC trained until it matches plain BC (``modes.matched_mixture``, the same rule on
+# these 4 demonstrations); to learn, the mixture BC after the weak start's epochs; each with
+# its spreads set to the gate's exploration noise.  A keep part with a seed whose mixture
+# never matched is not informative (:func:`keeps`): a start that is not perfect cannot be
+# kept.  Declared before any of its cells ran.  Why a keep part can be unasked: an unstored
+# probe (6 December; the mixture BC as ``modes`` trains it, lesson, 20 episodes) scored its
+# mean action 0.40 on cartpole's 4 demonstrations (seed 0; plain BC 1.00), and 0.17 / 0.31 /
+# 0.27 (seeds 0-2) trained as the Gaussian start is (70/30, early stopping).  The Gaussian's
+# form inside the mixture (one state-independent spread per component, near-zero initial
+# means) cloned cartpole (0.96) but not reacher4 (0.26, against the mixture's 0.88 and plain
+# BC's 0.92), so the mixture stays as ``nn.mixture`` has it.
+VARIANTS = {"dc-mix": "dc"}
+LEARNERS = ("ppo", "gail", "dril", "pwil", "ndi", "gpril", "dc", *VARIANTS)
 CONTROL = "ppo"   # the RL base on the task's own reward: a control, run by no later grid
 KEEP_TASKS = ("cartpole", "hopper")
 LEARN_TASKS = ("hopper", "halfcheetah")
@@ -173,6 +190,16 @@ def _with(cfg, settings: dict):
     return cfg
 
 
+def algorithm(learner: str) -> str:
+    """The registered algorithm a gated row runs (``dc-mix``: ``dc``)."""
+    return VARIANTS.get(learner, learner)
+
+
+def is_mixture(learner: str) -> bool:
+    """Whether a gated row starts from a mixture BC (every variant so far does)."""
+    return learner in VARIANTS
+
+
 def learner_config(learner: str, b, part: str, seed: int, task: str | None = None):
     """The learner's config in a cell of ``part``: :func:`gated_config` at the part's
     interactions."""
@@ -186,6 +213,7 @@ def gated_config(learner: str, b, steps: int, seed: int, task: str | None = None
     ``task``, the training-only termination of ``TERMINATE``; then the learner's own
     :data:`FIXES`."""
     sized = dataclasses.replace(b, il_steps=steps)
+    learner = algorithm(learner)
     cfg = dataclasses.replace(_algorithms.get(learner).preset(sized, seed),
                               start_log_std=_base.START_LOG_STD)
     cfg = _with(cfg, FIXES.get(learner, {}))
@@ -214,6 +242,11 @@ def cells_at(b) -> list[cells.Cell]:
                          "eval_seed": protocol.expert_eval_seed(0),
                          "curve_points": b.competence_curve_points,
                          "curve_episodes": b.competence_curve_episodes,
+                         **({"start_policy": "mixture",
+                             "n_components": _t1.N_COMPONENTS,
+                             "log_std_min": _mixture.LOG_STD_MIN,
+                             "start_training": "bc-full", "matched": part == "keep"}
+                            if is_mixture(learner) else {}),
                          learner: _im.without_seed(cfg)}, variant=part))
     out.sort(key=lambda c: (c.seed, c.variant, c.task))   # seed-major: every seed's rows early
     return out
@@ -230,10 +263,33 @@ def run_cell(cell, needs):
         return _evaluation.evaluate_policy(cell.task, policy, None, n_episodes=n_episodes,
                                            seed=c["eval_seed"], divergences=False)
 
-    start = _im.cached_start(   # the seed's start, shared by the seven learners' cells
+    if is_mixture(cell.learner):
+        start, match = _im.cached_start(
+            (cell.task, cell.n_demos, "competence", cell.seed, c["start_epochs"], "mixture"),
+            lambda: mixture_start(cell.task, demos, cell.seed, b, c["part"]))
+        out = _im.train_from_start(cell, cfg, demos, start, evaluate,
+                                   algorithm=algorithm(cell.learner))
+        return ({**out, "match": match} if match is not None else out), None
+    start = _im.cached_start(   # the seed's start, shared by the learners' cells
         (cell.task, cell.n_demos, "competence", cell.seed, c["start_epochs"], False),
         lambda: _bc.warm_start_policy(demos, cell.seed, max_epochs=c["start_epochs"]))
     return _im.train_from_start(cell, cfg, demos, start, evaluate), None
+
+
+def mixture_start(task: str, demos, seed: int, b, part: str) -> tuple:
+    """``(start, match record or None)`` of a mixture variant's cell (:data:`VARIANTS`):
+    to keep, ``modes.matched_mixture`` (the mixture BC on all the demonstrations, trained
+    until its mean action matches plain BC's); to learn, the same training stopped after
+    ``competence_weak_epochs``; each component's spread then set to the gate's exploration
+    noise, as ``modes`` starts its ``dc-mix`` rows."""
+    from dc_lesson.experiments.studies import modes as _modes   # modes imports this module
+    if part == "keep":
+        policy, match = _modes.matched_mixture(task, demos, seed, b)
+    else:
+        cfg = dataclasses.replace(_t1._bc_config(b, seed, True, full=True),
+                                  epochs=b.competence_weak_epochs)
+        policy, match = _bc.train(task, demos, cfg, progress=False).policy, None
+    return _t1._mixture_start(policy, _base.START_LOG_STD), match
 
 
 # -- the gate ----------------------------------------------------------------------------------
@@ -336,6 +392,10 @@ def keeps(runs: list[dict], gate_dip: bool = True) -> tuple[bool | None, str]:
     task (:func:`knife_edge`): the finals rule alone decides, and a pass says so."""
     if not runs:
         return None, NOT_RUN
+    unmatched = sum(r.get("matched") is False for r in runs)
+    if unmatched:   # a mixture variant's start (VARIANTS): not perfect, so not a keep question
+        return None, (f"its mixture start did not match plain BC on {unmatched} of "
+                      f"{len(runs)} seeds: a start that is not perfect cannot be kept")
     kept = [r["final"] >= r["start"] - KEEP_TOLERANCE for r in runs]
     dips = [r["start"] - min(r["curve"] or [r["final"]]) for r in runs]
     if np.mean(kept) < KEEP_SHARE:
@@ -370,6 +430,8 @@ def so_far(part: str, runs: list[dict], n_seeds: int, gate_dip: bool = True
     the seeds is not yet the study's (one failed seed in three is within the keep rule's
     allowance of ten; a learn mean moves with every seed)."""
     have = f"{len(runs)} of {n_seeds} seeds on record"
+    if part == "keep" and any(r.get("matched") is False for r in runs):
+        return keeps(runs)       # not informative already, whatever the rest shows
     if part == "keep" and runs:
         ended = sum(r["final"] < r["start"] - KEEP_TOLERANCE for r in runs)
         allowed = n_seeds - math.ceil(KEEP_SHARE * n_seeds - 1e-9)
@@ -428,7 +490,8 @@ def gate(observations: list[dict], knife: frozenset[str] = frozenset(),
         reasons, verdicts = [], []
         for part, tasks in (("keep", KEEP_TASKS), ("learn", LEARN_TASKS)):
             for task in tasks:
-                runs = [{"start": o["start"], "final": o["final"], "curve": o["curve"]}
+                runs = [{"start": o["start"], "final": o["final"], "curve": o["curve"],
+                         "matched": o.get("matched")}
                         for o in observations if o["row"] == learner and o["part"] == part
                         and o["task"] == task]
                 ok, why = judge_part(part, task, runs, knife,
@@ -465,6 +528,7 @@ def aggregate(records, b) -> dict:
                     "final": res["final"]["scaled_return"],
                     "curve": [p["scaled_return"] for p in res["curve"]],
                     "curve_steps": [p["steps"] for p in res["curve"]],
+                    "matched": res["match"]["matched"] if "match" in res else None,
                     # wall-clock figures live in the record's timing (cells.split_timing)
                     "train_seconds": r.get("timing", {}).get("train_seconds")})
     knife = stored_knife_edge()
@@ -482,7 +546,7 @@ STUDY = cells.Study(NAME, "every RL learner keeps a perfect start and learns fro
                     cells=cells_at, run_cell=run_cell, aggregate=aggregate,
                     result_file="competence.json")
 
-__all__ = ["DIP_NOT_GATED", "KEEP_TASKS", "KNIFE_EDGE_SHARE", "LEARNERS", "LEARN_TASKS", "NAME",
+__all__ = ["DIP_NOT_GATED", "VARIANTS", "algorithm", "is_mixture", "mixture_start", "KEEP_TASKS", "KNIFE_EDGE_SHARE", "LEARNERS", "LEARN_TASKS", "NAME",
            "STEP_SCALE", "STUDY", "aggregate", "budget_seeds", "cells_at", "competence", "gate",
            "judge_part", "part_seeds", "so_far",
            "keeps", "knife_edge", "learns", "matches_reference", "reference_records",
