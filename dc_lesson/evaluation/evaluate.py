@@ -92,7 +92,8 @@ def evaluate_policy(task: str, policy, reference: _data.Demonstrations | None = 
     ``actions``: ``"mean"`` (the mean action) or ``"sampled"`` (actions drawn at the
     policy's learned std, from a generator seeded by ``seed``) or ``"components"`` (a
     mixture's component drawn by its weight at each step, acting with its mean:
-    :class:`~dc_lesson.nn.mixture.ComponentMeans`; a Gaussian policy's mean action).  ``variant``: the scaled
+    :class:`~dc_lesson.nn.mixture.ComponentMeans`; a Gaussian policy's mean action).
+    ``variant``: the scaled
     return's ends are that expert variant's (``"planner"``), not the task's default expert's.
     """
     if actions not in ACTIONS + (COMPONENTS,):

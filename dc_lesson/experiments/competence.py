@@ -126,7 +126,8 @@ def rows(rec: dict) -> list[dict]:
                                 "dip": gated, "word": "not run yet"})
                     continue
                 ok, why = _study.judge_part(
-                    part, task, [{k: r.get(k) for k in ("start", "final", "curve", "matched")} for r in runs],
+                    part, task, [{k: r.get(k) for k in ("start", "final", "curve", "matched")}
+                                 for r in runs],
                     knife, refs.get((learner, part, task)), needed.get(part))
                 dip = max(r["start"] - min(r["curve"] or [r["final"]]) for r in runs)
                 short = len(runs) < needed.get(part, 0)

@@ -176,4 +176,5 @@ class ComponentMeans:
 
 _policies._CLASSES["MixturePolicy"] = MixturePolicy   # save_policy / load_policy know it
 
-__all__ = ["ComponentMeans", "FIRST_GRID_LOG_STD_MIN", "LOG_STD_MAX", "LOG_STD_MIN", "MixturePolicy"]
+__all__ = ["ComponentMeans", "FIRST_GRID_LOG_STD_MIN", "LOG_STD_MAX", "LOG_STD_MIN",
+           "MixturePolicy"]

@@ -546,7 +546,8 @@ STUDY = cells.Study(NAME, "every RL learner keeps a perfect start and learns fro
                     cells=cells_at, run_cell=run_cell, aggregate=aggregate,
                     result_file="competence.json")
 
-__all__ = ["DIP_NOT_GATED", "VARIANTS", "algorithm", "is_mixture", "mixture_start", "KEEP_TASKS", "KNIFE_EDGE_SHARE", "LEARNERS", "LEARN_TASKS", "NAME",
+__all__ = ["DIP_NOT_GATED", "KEEP_TASKS", "KNIFE_EDGE_SHARE", "LEARNERS", "LEARN_TASKS", "NAME",
+           "VARIANTS", "algorithm", "is_mixture", "mixture_start",
            "STEP_SCALE", "STUDY", "aggregate", "budget_seeds", "cells_at", "competence", "gate",
            "judge_part", "part_seeds", "so_far",
            "keeps", "knife_edge", "learns", "matches_reference", "reference_records",

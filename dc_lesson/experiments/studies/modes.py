@@ -321,6 +321,7 @@ STUDY = cells.Study(NAME, "Table I rerun under the gate: the multi-mode tasks, t
                     run_cell=lambda c, n: _common.run_expert_or(c, n, run_cell),
                     aggregate=aggregate, result_file="modes.json")
 
-__all__ = ["EVALUATIONS", "FIXED_ROWS", "MATCH_EPISODES", "MATCH_SCALES", "MATCH_SEED", "MATCH_TOLERANCE",
+__all__ = ["EVALUATIONS", "FIXED_ROWS", "MATCH_EPISODES", "MATCH_SCALES", "MATCH_SEED",
+           "MATCH_TOLERANCE",
            "NAME", "PAIRS", "Row", "STUDY", "TASKS", "cells_at", "learner_config",
            "matched_mixture", "observations", "rows", "run_cell", "seeds"]
