@@ -649,7 +649,8 @@ if modes_rec is not None:
 # ratio need. Its *mean action* is the mean of the most probable component at the state (the
 # mixture's own mean would lie between the modes), so under the mean action a mixture is
 # still a deterministic function of the state: on the hidden-coin demonstrations only its
-# *sampled* actions can split one start state between targets.
+# *sampled* actions, or its drawn component (below), can split one start state between
+# targets.
 #
 # Each component's spread has a floor, $\sigma_k(s) \ge e^{-2}$. Without one, the likelihood
 # of a mixture density network grows without bound as a component shrinks onto the
@@ -686,9 +687,9 @@ if modes_rec is not None:
 # mixture seeds (the first 5 of each task), and each gets the rule's word for "the mixture
 # row is better" (lower mode TV and EMD, higher scaled return). `bc-mix - bc-full` and
 # `bc-mix-coin - bc-full-coin` change the policy class and nothing else; `dc-mix - bc-mix`
-# is the loop against the start it began from (under the mean action exactly: resetting the
-# spreads moves no component's mean or weight; under sampled actions against the mixture
-# BC's learned spread); `dc-mix - dc` changes the start too (the Gaussian DC starts from the
+# is the loop against the start it began from (under the mean action and the drawn component
+# exactly: resetting the spreads moves no component's mean or weight; under sampled actions
+# against the mixture BC's learned spread); `dc-mix - dc` changes the start too (the Gaussian DC starts from the
 # paper's 70/30 BC), so it judges the whole recipe. The mixture DC is an RL learner of its
 # own, so it passes chapter 5's competence gate before any comparison with it is judged
 # (its row there is *DC (mixture policy)*); until then those words read "not judged", with

@@ -480,7 +480,7 @@ else:
     gate_rows = pd.DataFrame([r for r in competence_report.rows(gate_record) if r["seeds"]])
     display(gate_rows.round(2).set_index(["learner", "part", "task"]))
     display(Markdown(competence_report.sentence(gate_record)))
-held_back = competence_report.mapping()
+held_back = {k: why for k, why in competence_report.mapping().items() if why}
 display(Markdown("What every verdict of the book reads from it today:\n\n" + "\n".join(
     f"* {competence_report.NAMES[k]} {why}" for k, why in held_back.items())
     if held_back else "Every learner has passed: every verdict of the book may judge."))

@@ -537,9 +537,23 @@ def test_the_mixture_variant_is_dc_from_a_mixture_start_gated_like_every_learner
     held = {"dc-mix": "has not yet shown competence — keep on cartpole: not run yet"}
     assert verdicts.rows_gate(("dc-mix-coin", "bc-mix-coin"), held).startswith(
         "dc-mix-coin has not yet shown competence")
-    assert verdicts.rows_gate(("dc-mix",), {"dc": "failed the competence gate — x"}) == \
-        "dc-mix failed the competence gate — x"           # a variant of a failed learner
     assert verdicts.rows_gate(("dc", "bc-mix"), held) is None
+    # a variant that passed is judged even where its learner failed: its own word, not DC's
+    failed_dc = {"dc": "failed the competence gate — x", "dc-mix": ""}
+    assert verdicts.rows_gate(("dc-mix-coin", "bc-mix-coin"), failed_dc) is None
+    assert verdicts.rows_gate(("dc-coin",), failed_dc).startswith("dc-coin failed")
+    obs = []
+    for learner in ("dc", "dc-mix"):
+        for part, tasks, n in (("keep", comp.KEEP_TASKS, 10), ("learn", comp.LEARN_TASKS, 5)):
+            for task in tasks:
+                good = (1.0, 1.0) if part == "keep" else (0.1, 0.9)
+                obs += [dict(o, match_record=True if learner != "dc" and part == "keep"
+                             else None) for o in _obs(learner, part, task, *good, n)]
+    obs = [dict(o, final=0.1, curve=[0.1]) if o["row"] == "dc" and o["task"] == "cartpole"
+           else o for o in obs]
+    mapping = comp.competence({"observations": obs})
+    assert mapping["dc-mix"] == "" and mapping["dc"].startswith("failed")
+    assert verdicts.rows_gate(("dc-mix",), mapping) is None
 
 
 def test_a_mixture_start_that_never_matched_plain_bc_leaves_keeping_unasked():
@@ -553,6 +567,23 @@ def test_a_mixture_start_that_never_matched_plain_bc_leaves_keeping_unasked():
     ok, why = comp.so_far("keep", runs[:4], 10)
     assert ok is None and "did not match" in why
     assert comp.keeps([dict(r, matched=None) for r in runs[:3]])[0] is not None  # a Gaussian
+    # the matched seeds are judged first: a failure they already show is a failure
+    falls = [dict(r, final=0.0, curve=[0.0]) if i < 3 else r for i, r in enumerate(runs)]
+    assert comp.keeps(falls)[0] is False and comp.so_far("keep", falls[:4], 10)[0] is False
+
+
+def test_a_mixture_start_matches_only_if_it_is_as_good_as_plain_bc_where_the_gate_looks():
+    """``judge_starts``: a mixture keep start that matched on the match episodes but scored
+    more than the tolerance below the same seed's Gaussian start on the gate's own episodes
+    did not match (the first stored cell: 1.00 against 0.75)."""
+    def o(row, start, record=None, seed=0):
+        return {"row": row, "part": "keep", "task": "cartpole", "seed": seed, "start": start,
+                "final": start, "curve": [start], "match_record": record}
+    got = comp.judge_starts([o("dc", 1.0), o("dc-mix", 0.75, True), o("dc", 1.0, seed=1),
+                             o("dc-mix", 0.97, True, seed=1), o("dc-mix", 1.0, False, seed=2),
+                             o("dc-mix", 1.0, True, seed=3)])
+    assert [got[i].get("matched") for i in (1, 3, 4, 5)] == [False, True, False, True]
+    assert "matched" not in got[0]                                   # a Gaussian row
 
 
 def test_a_mixture_variant_cell_records_its_match_and_the_aggregate_reads_it():
@@ -567,4 +598,4 @@ def test_a_mixture_variant_cell_records_its_match_and_the_aggregate_reads_it():
     assert set(res["match"]) == {"target", "tries", "matched"} and res["curve"]
     record = {"cell": cell.identity(), "result": res, "timing": {}}
     obs = comp.aggregate([record], smoke)["observations"]
-    assert obs[0]["row"] == "dc-mix" and obs[0]["matched"] is res["match"]["matched"]
+    assert obs[0]["row"] == "dc-mix" and obs[0]["match_record"] is res["match"]["matched"]

@@ -204,3 +204,30 @@ def test_the_components_evaluation_is_the_mean_action_for_a_gaussian():
     assert comp["returns"] == mean["returns"] and comp["actions"] == "components"
     with pytest.raises(ValueError, match="actions must be one of"):
         evaluation.evaluate_policy("cartpole", pi, actions="median", **kw)
+    with pytest.raises(ValueError, match="evaluate it with actions='mean'"):
+        evaluation.evaluate_policy("cartpole", lambda obs: np.zeros((len(obs), 1), np.float32),
+                                   actions=evaluation.COMPONENTS, **kw)
+
+
+def test_a_mixture_is_evaluated_through_its_drawn_components(monkeypatch):
+    """The ``components`` evaluation of a mixture acts through ``ComponentMeans``, seeded with
+    the evaluation's seed: a spy sees every step's batch."""
+    from dc_lesson import evaluation, tasks
+    from dc_lesson.evaluation import evaluate as ev_module
+    spec = tasks.spec("cartpole")
+    torch.manual_seed(0)
+    pi = mixture.MixturePolicy(spec.obs_dim, spec.act_dim, hidden=(8,))
+    seen = []
+
+    class Spy(mixture.ComponentMeans):
+        def __init__(self, policy, seed=0):
+            seen.append(("seed", seed))
+            super().__init__(policy, seed)
+
+        def __call__(self, obs):
+            seen.append(len(obs))
+            return super().__call__(obs)
+    monkeypatch.setattr(ev_module, "ComponentMeans", Spy)
+    evaluation.evaluate_policy("cartpole", pi, n_episodes=1, seed=1234, divergences=False,
+                               actions=evaluation.COMPONENTS)
+    assert seen[0] == ("seed", 1234) and len(seen) > 100

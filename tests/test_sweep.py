@@ -162,6 +162,9 @@ def test_a_new_row_is_estimated_from_its_learners_cost_per_interaction():
     costs[("dc-loops=4", "hopper", "lesson", sweep.interactions(four.config),
            four.study)] = [200.0]
     assert sweep.estimate(four, costs, "lesson", rates) == 200.0   # and its own study first
+    variant = dataclasses.replace(one, learner="dc-mix")
+    assert sweep.estimate(variant, {}, "lesson", rates) == pytest.approx(   # its learner's rate
+        0.002 * sweep.interactions(variant.config))
     assert sweep.interactions({"steps": 0}) is None               # BC: no interactions
 
 

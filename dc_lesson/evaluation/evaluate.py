@@ -107,6 +107,9 @@ def evaluate_policy(task: str, policy, reference: _data.Demonstrations | None = 
         acting = StochasticPolicy(policy, seed=seed)
     elif actions == COMPONENTS and isinstance(policy, MixturePolicy):
         acting = ComponentMeans(policy, seed=seed)
+    elif actions == COMPONENTS and not getattr(policy, "gaussian", False):
+        raise ValueError(f"actions='components' needs a mixture or a Gaussian policy, got "
+                         f"{type(policy).__name__}; evaluate it with actions='mean' instead")
     else:   # the mean action; a Gaussian's one component acts with its mean
         acting = policy
     t0 = time.perf_counter()

@@ -32,7 +32,8 @@ STORED = "stored"    # the default of every verdict entry point: read the stored
 def mapping(rec: dict | None = None) -> dict[str, str]:
     """The gate as verdicts read it: learner -> the phrase after its name in a "not judged"
     verdict, for every learner of the study that has not passed ("failed the competence gate
-    — why" or "has not yet shown competence — why").  From the stored aggregate (``rec``
+    — why" or "has not yet shown competence — why"), and ``""`` for a variant that passed
+    (so that its rows never read their learner's word).  From the stored aggregate (``rec``
     None), re-judged by today's rules; with no aggregate on record no learner has shown
     competence, so none is judged."""
     rec = load() if rec is None else rec
@@ -85,7 +86,7 @@ def resolve(competence, *grids: dict | None) -> dict[str, str] | None:
     gate = mapping()
     if under_gate(*grids):
         return gate
-    return {**{k: PRE_GATE for k in _study.LEARNERS}, **gate}
+    return {**{k: PRE_GATE for k in _study.LEARNERS}, **{k: v for k, v in gate.items() if v}}
 
 
 def status(rec: dict) -> str:
@@ -114,10 +115,11 @@ def rows(rec: dict) -> list[dict]:
     knife = _study.stored_knife_edge()
     refs = _study.stored_references(rec.get("observations", []))
     needed = _study.budget_seeds(rec) or {}
+    judged = _study.judge_starts(rec["observations"])
     for learner in _study.LEARNERS:
         for part, tasks in (("keep", _study.KEEP_TASKS), ("learn", _study.LEARN_TASKS)):
             for task in tasks:
-                runs = _runs(rec, learner, part, task)
+                runs = _runs({"observations": judged}, learner, part, task)
                 gated = ("" if part == "learn" else
                          "not gated: knife-edge start" if task in knife else "gated")
                 if not runs:
@@ -132,7 +134,8 @@ def rows(rec: dict) -> list[dict]:
                 dip = max(r["start"] - min(r["curve"] or [r["final"]]) for r in runs)
                 short = len(runs) < needed.get(part, 0)
                 word = ({True: "passes", False: "fails: " + why,
-                         None: (NOT_DECIDED if short else "not informative: ") + why}[ok]
+                         None: (NOT_DECIDED if short and _study.UNMATCHED not in why
+                                else "not informative: ") + why}[ok]
                         if not why.startswith(_study.REFERENCE_MATCHED) else
                         AS_REFERENCE + why[len(_study.REFERENCE_MATCHED):])
                 out.append({"learner": NAMES[learner], "part": part, "task": task,

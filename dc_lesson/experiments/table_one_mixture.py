@@ -16,7 +16,8 @@ The comparisons (:data:`COMPARISONS`), each paired by seed over the mixture rows
 The rerun under the gate (``modes.json``) records no ``bc-mixstart`` row (its mixture DC's start is
 ``bc-mix`` with its spreads reset, which moves no component's mean or weight), so there the
 loop is measured against ``bc-mix`` (:func:`comparisons`): the same difference under the mean
-action; under sampled actions against the mixture BC's learned spread, not the exploring one.
+action and under the drawn component (``components``); under sampled actions against the
+mixture BC's learned spread, not the exploring one.
 A comparison whose rows are not in the grid is left out.
 
 Each is judged on three measures by the one rule of :mod:`verdicts` (is the mixture row

@@ -274,13 +274,16 @@ def rows_gate(rows, competence: dict | None) -> str | None:
     ``b``): the first row whose learner is in ``competence``, with its phrase.  A row's
     learner is the row itself or its longest leading hyphen-part that the mapping names
     (``dc-mix-coin``: ``dc-mix``, a gated variant, before ``dc``; ``dc@lr``, ``gail (x)``:
-    ``dc``, ``gail``)."""
+    ``dc``, ``gail``).  A name mapped to ``""`` passed (a variant, named so that its rows
+    never read their learner's word): the row is judged."""
     for row in rows:
         parts = row.split("@")[0].split(" ")[0].split("-")
         names = [row] + ["-".join(parts[:i]) for i in range(len(parts), 0, -1)]
         for name in names:
             if competence and name in competence:
-                return f"{row} {competence[name]}"
+                if competence[name]:
+                    return f"{row} {competence[name]}"
+                break
     return None
 
 

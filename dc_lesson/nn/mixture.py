@@ -156,8 +156,10 @@ class ComponentMeans:
     (clipped to the bounds), from its own seeded generator.
 
     Why: the mixture's sampled actions add its component spread, which the floor keeps at
-    e^-2 or more; on a reacher that noise alone stops the arm arriving anywhere, so sampled
-    actions cannot tell whether the mixture holds several modes.  The mean action (the most
+    e^-2 or more; on a reacher that noise can stop the arm arriving anywhere (the first
+    ``modes`` reacher4 ``bc-mix`` cell, seed 0: 96% of its sampled episodes arrived nowhere,
+    4% of its mean-action ones), so sampled actions cannot tell whether the mixture holds
+    several modes.  The mean action (the most
     probable component) picks one mode per state by construction.  Drawing the component
     and dropping only the within-component noise asks the mode question of the mixture's
     weights: does it put weight on several modes where the expert went to several?  For a

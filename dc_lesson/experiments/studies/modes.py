@@ -14,9 +14,11 @@ they take the longest the curves needed) with the gate's settings
 (``competence.gated_config``); every policy evaluated with its mean action and with sampled
 actions against the fresh reference, as in the first grid, and a mixture policy also with
 its drawn component acting with that component's mean (``"components"``,
-:class:`~dc_lesson.nn.mixture.ComponentMeans`): the floor's spread (e^-2) alone stops a
-reacher arriving anywhere under sampled actions, so sampled actions cannot say whether the
-mixture holds several modes, and the mean action picks one mode per state by construction.
+:class:`~dc_lesson.nn.mixture.ComponentMeans`): under sampled actions the floor's spread
+(e^-2) can stop a reacher arriving anywhere (the first reacher4 ``bc-mix`` cell, seed 0:
+96% of its sampled episodes arrived nowhere, 4% of its mean-action ones), so sampled actions
+cannot say whether the mixture holds several modes, and the mean action picks one mode per
+state by construction.
 A Gaussian row's ``"components"`` evaluation is its mean action (one component), so the
 mixture rows pair with their Gaussian controls under it.
 
