@@ -1028,9 +1028,12 @@ with pd.option_context("display.max_colwidth", None):
 # update converges, it works across learning rates); and it keeps the expert's modes where
 # adversarial imitation collapses. Here is the book's answer to each, rendered from the
 # stored verdicts above and in chapter 4 by `dc_lesson.experiments.findings`: a lead that
-# counts the claims by the rule's word, then every claim with its word. No question gets a
-# word of its own; where a grid is still accumulating, the lead says the answer is
-# provisional.
+# counts the claims by the rule's word task by task, then, for the claims also judged
+# across tasks (the across-task IQM, the benchmark's headline), their across-task words;
+# then every claim with its words. The two counts answer different questions ("at every
+# demonstration count" against "on the benchmark as a whole"), so neither stands in for
+# the other. No question gets a word of its own; where a grid is still accumulating, the
+# lead says the answer is provisional.
 
 # %%
 from dc_lesson.experiments import findings

@@ -28,7 +28,7 @@ def test_the_lead_counts_the_claims_by_word_and_names_a_missing_claim():
           _v(q.claims[2], "contradicted", "inconclusive")]      # the fourth never ran
     got = F.answer(q, vs)
     assert got["lead"] == (f"Of its {len(q.claims)} claims: 1 reproduced, 1 equal within, "
-                           "1 mixed, 1 not run yet.")
+                           f"1 {F.MIXED}, 1 not run yet.")
     assert got["words"][q.claims[3].name] == "not run yet"
     assert len(got["lines"]) == len(q.claims)
     assert "**reproduced**" in got["lines"][0]
@@ -63,7 +63,7 @@ def test_the_lead_says_why_claims_were_not_judged_and_when_a_word_rests_on_part_
     assert lead.startswith(f"Of its {len(q.claims)} claims: 1 reproduced, 3 not judged (")
     assert "too few paired seeds yet: 1" in lead and "a start at the ceiling or floor: 1" in lead
     assert "a learner compared failed the competence gate: 1" in lead
-    assert "1 of the judged claims rest on part of their (task, count) pairs" in lead
+    assert "1 of the judged claims rests on part of its (task, count) pairs" in lead
     assert F.why_not(V.Verdict("x", "s", "r", "not judged: something new", "")) == ["other"]
 
 
@@ -71,5 +71,12 @@ def test_a_claim_judged_across_tasks_shows_that_word_too():
     v = _v(C.DC_BEATS_BC, "not judged: fewer than 5 paired seeds")
     across = V.Entry("across tasks", "reproduced", 0.1, 0.05, 0.2, 6, 0.01, 0.05)
     v = V.Verdict(v.claim, v.source, v.rule, v.verdict, "", "", v.per_task, across)
-    line = F.answer(F.QUESTIONS[0], [v])["lines"][0]
-    assert line.endswith("Across tasks: reproduced.")
+    got = F.answer(F.QUESTIONS[0], [v])
+    assert got["lines"][0].endswith("Across tasks: reproduced.")
+    # the lead counts task by task, then the across-task words apart: neither stands in
+    mixed = _v(C.COMPARABLE_BC, "reproduced", "inconclusive")
+    mixed = V.Verdict(mixed.claim, mixed.source, mixed.rule, mixed.verdict, "", "",
+                      mixed.per_task, across)
+    lead = F.answer(F.QUESTIONS[0], [v, mixed])["lead"]
+    assert f"task by task: 1 {F.MIXED}, 1 not judged" in lead
+    assert lead.endswith("Across tasks, the 2 claims judged that way: 2 reproduced.")

@@ -105,3 +105,14 @@ def test_a_partial_benchmark_judges_the_fewest_only_claims_at_its_designed_fewes
     del rec["design"]
     few = {v.claim: v for v in t3.verdicts(rec)}[claims.DC_BEATS_DRIL_FEW.name]
     assert [e.key for e in few.per_task] == [("reacher1", 25)]
+
+
+def test_a_claim_with_no_pairs_says_why_instead_of_not_run_yet():
+    """A claim whose learner the gate held out of the grid has no (task, count) pairs: its
+    line gives the verdict's own words ("not judged" and the gate's reason), and only a
+    claim with no verdict at all reads "not run yet"."""
+    from dc_lesson.experiments import verdicts as V
+    held = V.Verdict("DC is at least comparable to GAIL", "s", "r",
+                     "not judged: gail failed the competence gate — why", "")
+    assert w.claim_line(held).endswith("not judged: gail failed the competence gate — why.")
+    assert w.claim_line(V.Verdict("x", "s", "r", "", "")).endswith("not run yet.")

@@ -9,13 +9,17 @@ verdicts of those claims, by fixed rules and no word of its own:
 
 * each claim is one sentence: its name, the rule's word (as :func:`verdicts.count` put it:
   per task, or per task and count) and the grid it rests on;
-* the question's lead sentence counts the claims by their word: how many reproduced, how
-  many contradicted, how many came out equal within the bound, inconclusive, mixed (a claim
-  whose tasks gave different words), or not judged, and why (:func:`why_not`: a learner
-  that failed the competence gate, a grid run before the gate, too few paired seeds yet, a
-  start at the ceiling or floor); a word that rests on part of its claim's (task, count)
-  pairs says on how many;
-* a claim judged across tasks too (``Verdict.across``) shows that word beside its own;
+* the question's lead sentence counts the claims by their word task by task: how many
+  reproduced, how many contradicted, how many came out equal within the bound,
+  inconclusive, with different words on different tasks (:data:`MIXED`), or not judged,
+  and why (:func:`why_not`: a learner that failed the competence gate, a grid run before
+  the gate, too few paired seeds yet, a start at the ceiling or floor); a word that rests
+  on part of its claim's (task, count) pairs says on how many;
+* then, for the claims judged across tasks too (``Verdict.across``: the across-task IQM,
+  issue 41's headline), it counts their across-task words; each such claim's line shows
+  that word beside its own.  Both counts are given because they answer different
+  questions: "at every count" is the task-by-task one, "on the benchmark as a whole" the
+  across-task one, and neither stands in for the other;
 * a grid still accumulating is named as such in the lead, so a reader sees when an answer
   is provisional (:func:`provisional`).
 
@@ -30,7 +34,7 @@ import dataclasses
 from dc_lesson.experiments import claims as C
 from dc_lesson.experiments import verdicts as V
 
-MIXED = "mixed"     # a claim whose tasks (or counts) gave different words
+MIXED = "with different words on different tasks"   # its tasks (or counts) disagree
 
 
 @dataclasses.dataclass(frozen=True)
@@ -102,7 +106,7 @@ def answer(q: Question, verdicts: list, sources: dict | None = None) -> dict:
     sentence (module docstring), one Markdown line per claim of ``q`` found in
     ``verdicts`` (a claim not found says "not run yet"), and ``{claim: word}``."""
     by = {v.claim: v for v in verdicts}
-    words, lines, why, part = {}, [], {}, 0
+    words, lines, why, part, across = {}, [], {}, 0, []
     for c in q.claims:
         v = by.get(c.name)
         if v is None:
@@ -116,20 +120,30 @@ def answer(q: Question, verdicts: list, sources: dict | None = None) -> dict:
                 why[reason] = why.get(reason, 0) + 1
         elif judged < members:
             part += 1
-        across = (f" Across tasks: {V.kind(v.across.word)}." if v.across is not None
-                  and V.kind(v.across.word) != V.NOT_JUDGED else "")
-        lines.append(f"* {c.name} ({c.source}): **{v.verdict}**.{across}")
+        whole = (V.kind(v.across.word) if v.across is not None
+                 and V.kind(v.across.word) != V.NOT_JUDGED else None)
+        if whole:
+            across.append(whole)
+        lines.append(f"* {c.name} ({c.source}): **{v.verdict}**."
+                     + (f" Across tasks: {whole}." if whole else ""))
     order = (V.REPRODUCED, V.CONTRADICTED, V.EQUAL, V.INCONCLUSIVE, MIXED, V.NOT_JUDGED,
              "not run yet")
     said = [f"{sum(w == k for w in words.values())} {k}" for k in order
             if any(w == k for w in words.values())]
-    lead = f"Of its {len(q.claims)} claims: " + ", ".join(said)
+    lead = (f"Of its {len(q.claims)} claims" + (", task by task" if across else "") + ": "
+            + ", ".join(said))
     if why:
         lead += " (" + "; ".join(f"{r}: {k}" for r, k in why.items()) + ")"
     lead += "."
     if part:
-        lead += (f" {part} of the judged claims rest on part of their (task, count) pairs, "
-                 f"the rest not judged (their lines say which).")
+        lead += (f" {part} of the judged claims {'rests' if part == 1 else 'rest'} on part "
+                 f"of {'its' if part == 1 else 'their'} (task, count) pairs; the lines name "
+                 f"the pairs not judged.")
+    if across:
+        counted = [f"{sum(w == k for w in across)} {k}" for k in order if k in across]
+        lead += (f" Across tasks, the {len(across)} "
+                 f"{'claim' if len(across) == 1 else 'claims'} judged that way: "
+                 + ", ".join(counted) + ".")
     late = provisional(sources or {})
     if late:
         lead += " Provisional: it rests on grids still accumulating, " + "; ".join(late) + "."

@@ -77,13 +77,14 @@ def summary(vs: list) -> list[dict]:
 
 def claim_line(v) -> str:
     """One Markdown line: the claim's (task, count) pairs grouped by word, each not-judged
-    group with its reason."""
+    group with its reason; a claim with no pairs gives its verdict's own words (a learner
+    the gate held out of the grid: "not judged" with the gate's reason), or "not run yet"."""
     groups: dict = {}
     for e in v.per_task:
         groups.setdefault(e.word, []).append(e.key)
     order = sorted(groups, key=lambda w: (V.WORDS.index(V.kind(w)), w))
     parts = [f"{w} on {_span(groups[w])}" for w in order]
-    return f"* **{v.claim}**: " + ("; ".join(parts) if parts else "not run yet") + "."
+    return f"* **{v.claim}**: " + ("; ".join(parts) or v.verdict or "not run yet") + "."
 
 
 def lines(rec: dict, vs: list | None = None) -> list[str]:
