@@ -48,6 +48,11 @@ def module_name(path: pathlib.Path) -> str:
     return ".".join(parts)
 
 
+def _is_module(name: str) -> bool:
+    path = PACKAGE.parent.joinpath(*name.split("."))
+    return path.with_suffix(".py").exists() or (path / "__init__.py").exists()
+
+
 def imported_modules(source: str, this: str) -> list[tuple[int, str]]:
     """(line, module) for every dc_lesson module ``source`` imports (``from dc_lesson import x``
     counts as importing ``dc_lesson.x``)."""
@@ -59,8 +64,10 @@ def imported_modules(source: str, this: str) -> list[tuple[int, str]]:
                 and node.module.startswith("dc_lesson"):
             if node.module == "dc_lesson":
                 out += [(node.lineno, f"dc_lesson.{a.name}") for a in node.names]
-            else:
-                out.append((node.lineno, node.module))
+            else:   # ``from package import module`` imports that module, not the package
+                subs = [f"{node.module}.{a.name}" for a in node.names
+                        if _is_module(f"{node.module}.{a.name}")]
+                out += [(node.lineno, m) for m in subs] or [(node.lineno, node.module)]
     return out
 
 
@@ -101,6 +108,13 @@ def test_imports_only_go_down():
 ])
 def test_the_checker_catches_a_deliberate_upward_import(source):
     assert violations(source, "dc_lesson.algorithms.bc")
+
+
+def test_the_checker_sees_a_module_imported_from_its_package():
+    """``from package import module`` is an edge to the module (a cycle through it counts)."""
+    got = [m for _, m in imported_modules(
+        "def f():\n    from dc_lesson.experiments.studies import modes\n", "x")]
+    assert got == ["dc_lesson.experiments.studies.modes"]
 
 
 def test_the_checker_lets_a_downward_import_through():

@@ -50,12 +50,13 @@ def test_the_mixture_trains_longer_until_it_matches_plain_bc(monkeypatch):
         def __init__(self, epochs, mixture):
             self.policy = (epochs, mixture)
 
-    monkeypatch.setattr(modes._bc, "train",
+    match = modes._match   # the rule both mixture-start studies apply
+    monkeypatch.setattr(match._bc, "train",
                         lambda task, demos, cfg, progress: trained.append(cfg.epochs) or
                         Fake(cfg.epochs, cfg.policy == "mixture"))
-    monkeypatch.setattr(modes.protocol, "check_disjoint", lambda *a: None)
+    monkeypatch.setattr(match.protocol, "check_disjoint", lambda *a: None)
     scores = {(200, False): 0.9, (200, True): 0.5, (400, True): 0.86, (800, True): 0.95}
-    monkeypatch.setattr(modes, "_match_score", lambda task, p: scores[p])
+    monkeypatch.setattr(match, "_match_score", lambda task, p: scores[p])
     policy, rec = modes.matched_mixture("reacher2", None, 0, lesson)
     assert policy == (400, True) and rec["matched"] and rec["target"] == 0.9
     assert [t["epochs"] for t in rec["tries"]] == [200, 400]     # stopped at the first match

@@ -54,14 +54,15 @@ from dc_lesson.data import store as _store
 from dc_lesson.experiments import cells, protocol
 from dc_lesson.experiments.studies import _common, _imitation as _im
 from dc_lesson.experiments.studies import table1 as _t1
+from dc_lesson.experiments.studies import _mixture_match as _match
 from dc_lesson.nn import mixture as _mixture
 
 NAME = "competence"
 # The mixture variants the book judges (issue 38 asks for them too): DC with the
 # 4-component mixture policy (``nn.mixture``), chapter 04's ``dc-mix`` rows.  Its cells run
 # DC's own gated config from the start those rows have (:func:`mixture_start`): to keep, the
-# mixture BC trained until it matches plain BC (``modes.matched_mixture``, the same rule on
-# these 4 demonstrations); to learn, the mixture BC after the weak start's epochs; each with
+# mixture BC trained until it matches plain BC (``_mixture_match``, ``modes``' rule, on these
+# 4 demonstrations); to learn, the mixture BC after the weak start's epochs; each with
 # its spreads set to the gate's exploration noise.  A keep part with a seed whose mixture
 # did not match is not informative (:func:`keeps`): a start that is not perfect cannot be
 # kept.  A start matches when its match record did (the match episodes) *and* it scored, on
@@ -70,8 +71,8 @@ NAME = "competence"
 # cartpole: matched on the match episodes, 0.75 on the gate's against the Gaussian's 1.00,
 # which is why the second condition was added).  Its dips on hopper are not gated, like every
 # learner's there: the knife-edge measurement (``start_noise``) is of the Gaussian starts,
-# and is taken to hold for the mixture's (not measured).  Why a keep part can be unasked: an unstored
-# probe (6 December; the mixture BC as ``modes`` trains it, lesson, 20 episodes) scored its
+# and is taken to hold for the mixture's (not measured).  Why a keep part can be unasked: an
+# unstored probe (6 December; the mixture BC as ``modes`` trains it, lesson, 20 episodes) scored its
 # mean action 0.40 on cartpole's 4 demonstrations (seed 0; plain BC 1.00), and 0.17 / 0.31 /
 # 0.27 (seeds 0-2) trained as the Gaussian start is (70/30, early stopping).  The Gaussian's
 # form inside the mixture (one state-independent spread per component, near-zero initial
@@ -196,22 +197,9 @@ def _with(cfg, settings: dict):
     return cfg
 
 
-def _match_rule() -> tuple:
-    """``modes``' match rule (seed, episodes, tolerance, scales), which a mixture keep cell
-    applies to its start."""
-    from dc_lesson.experiments.studies import modes as _modes   # modes imports this module
-    return (_modes.MATCH_SEED, _modes.MATCH_EPISODES, _modes.MATCH_TOLERANCE,
-            _modes.MATCH_SCALES)
-
-
 def algorithm(learner: str) -> str:
     """The registered algorithm a gated row runs (``dc-mix``: ``dc``)."""
     return VARIANTS.get(learner, learner)
-
-
-def is_mixture(learner: str) -> bool:
-    """Whether a gated row starts from a mixture BC (every variant so far does)."""
-    return learner in VARIANTS
 
 
 def learner_config(learner: str, b, part: str, seed: int, task: str | None = None):
@@ -240,8 +228,6 @@ def gated_config(learner: str, b, steps: int, seed: int, task: str | None = None
 
 
 def cells_at(b) -> list[cells.Cell]:
-    rule = _match_rule()   # part of a mixture keep cell's identity
-    match = dict(zip(("seed", "episodes", "tolerance", "scales"), (*rule[:3], list(rule[3]))))
     out = []
     for part, tasks, n_seeds in (("keep", KEEP_TASKS, b.competence_keep_seeds),
                                  ("learn", LEARN_TASKS, b.competence_learn_seeds)):
@@ -262,8 +248,8 @@ def cells_at(b) -> list[cells.Cell]:
                              "n_components": _t1.N_COMPONENTS,
                              "log_std_min": _mixture.LOG_STD_MIN,
                              "start_training": "bc-full",
-                             "match": match if part == "keep" else None}
-                            if is_mixture(learner) else {}),
+                             "match": dict(_match.RULE) if part == "keep" else None}
+                            if learner in VARIANTS else {}),
                          learner: _im.without_seed(cfg)}, variant=part))
     out.sort(key=lambda c: (c.seed, c.variant, c.task))   # seed-major: every seed's rows early
     return out
@@ -280,7 +266,7 @@ def run_cell(cell, needs):
         return _evaluation.evaluate_policy(cell.task, policy, None, n_episodes=n_episodes,
                                            seed=c["eval_seed"], divergences=False)
 
-    if is_mixture(cell.learner):
+    if cell.learner in VARIANTS:   # every variant so far starts from a mixture BC
         start, match = _im.cached_start(
             (cell.task, cell.n_demos, "competence", cell.seed, c["start_epochs"], "mixture",
              c["part"]),
@@ -296,13 +282,12 @@ def run_cell(cell, needs):
 
 def mixture_start(task: str, demos, seed: int, b, part: str) -> tuple:
     """``(start, match record or None)`` of a mixture variant's cell (:data:`VARIANTS`):
-    to keep, ``modes.matched_mixture`` (the mixture BC on all the demonstrations, trained
-    until its mean action matches plain BC's); to learn, the same training stopped after
+    to keep, ``_mixture_match.matched_mixture`` (the mixture BC on all the demonstrations,
+    trained until its mean action matches plain BC's); to learn, the same training stopped after
     ``competence_weak_epochs``; each component's spread then set to the gate's exploration
     noise, as ``modes`` starts its ``dc-mix`` rows."""
-    from dc_lesson.experiments.studies import modes as _modes   # modes imports this module
     if part == "keep":
-        policy, match = _modes.matched_mixture(task, demos, seed, b)
+        policy, match = _match.matched_mixture(task, demos, seed, b)
     else:
         cfg = dataclasses.replace(_t1._bc_config(b, seed, True, full=True),
                                   epochs=b.competence_weak_epochs)
@@ -592,7 +577,7 @@ STUDY = cells.Study(NAME, "every RL learner keeps a perfect start and learns fro
                     result_file="competence.json")
 
 __all__ = ["DIP_NOT_GATED", "KEEP_TASKS", "KNIFE_EDGE_SHARE", "LEARNERS", "LEARN_TASKS", "NAME",
-           "UNMATCHED", "VARIANTS", "algorithm", "is_mixture", "judge_starts", "mixture_start",
+           "UNMATCHED", "VARIANTS", "algorithm", "judge_starts", "mixture_start",
            "STEP_SCALE", "STUDY", "aggregate", "budget_seeds", "cells_at", "competence", "gate",
            "judge_part", "part_seeds", "so_far",
            "keeps", "knife_edge", "learns", "matches_reference", "reference_records",

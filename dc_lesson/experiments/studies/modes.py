@@ -42,8 +42,9 @@ row                 stage  what it is
 ``dc-mix-coin``     4      DC from it
 ==================  =====  ===================================================================
 
-**The mixture BC is trained until it matches plain BC** (:func:`matched_mixture`): the same
-seed's plain BC (``bc-full``'s training, the same demonstrations) is scored with its mean
+**The mixture BC is trained until it matches plain BC** (:func:`matched_mixture`, from
+``_mixture_match``, the rule ``competence`` applies too): the same seed's plain BC
+(``bc-full``'s training, the same demonstrations) is scored with its mean
 action on :data:`MATCH_EPISODES` episodes from :data:`MATCH_SEED` (no evaluation or
 demonstration episode shares their starts); the mixture is trained for ``bc_max_epochs``
 epochs, then twice and four times as many (each a fresh, deterministic run), and the first
@@ -82,13 +83,13 @@ from dc_lesson.experiments.studies import _common, _imitation as _im
 from dc_lesson.experiments.studies import benchmark as _bench
 from dc_lesson.experiments.studies import competence as _competence
 from dc_lesson.experiments.studies import table1 as _t1
+from dc_lesson.experiments.studies import _mixture_match as _match
+from dc_lesson.experiments.studies._mixture_match import (MATCH_EPISODES, MATCH_SCALES,
+                                                          MATCH_SEED, MATCH_TOLERANCE,
+                                                          matched_mixture)
 
 NAME = "modes"
 TASKS = ("reacher4", "reacher2", "halfcheetah2")
-MATCH_SEED = 5000          # away from the evaluation (1000+), reference (3000) and headroom's
-MATCH_EPISODES = 10
-MATCH_TOLERANCE = 0.05     # the verdicts' smallest effect on scaled return
-MATCH_SCALES = (1, 2, 4)   # the mixture's epochs, in multiples of bc_max_epochs
 # the evaluations a mixture cell stores: the two every cell has, and the drawn component
 # acting with its mean (module docstring); a Gaussian row's "components" is its mean action
 EVALUATIONS = (*_t1.ACTIONS, _evaluation.COMPONENTS)
@@ -154,8 +155,7 @@ def cells_at(b) -> list[cells.Cell]:
             for seed in seeds(row, b):
                 cfg = _im.without_seed(json.loads(learner_config(row, b, task, seed).to_json()))
                 extra = {"row_start": row.start, "demo_variant": _demo_variant(row),
-                         "match": {"seed": MATCH_SEED, "episodes": MATCH_EPISODES,
-                                   "tolerance": MATCH_TOLERANCE, "scales": list(MATCH_SCALES),
+                         "match": {**_match.RULE,
                                    "log_std_min": _mixture.LOG_STD_MIN,
                                    "evaluations": list(EVALUATIONS)}
                          if row.start == "mix" else None}
@@ -165,38 +165,6 @@ def cells_at(b) -> list[cells.Cell]:
     order = list(table)   # within a seed, a mixture BC just before the DC that starts from it
     out.sort(key=lambda c: (c.stage, c.seed, TASKS.index(c.task), order.index(c.row)))
     return _im.expert_rows(NAME, TASKS, sized) + out
-
-
-def _plain(task, demos, seed, b):
-    return _bc.train(task, demos, _t1._bc_config(b, seed, False, full=True),
-                     progress=False).policy
-
-
-def _match_score(task, policy) -> float:
-    return float(_evaluation.evaluate_policy(task, policy, None, n_episodes=MATCH_EPISODES,
-                                             seed=MATCH_SEED, divergences=False)
-                 ["scaled_return"])
-
-
-def matched_mixture(task: str, demos, seed: int, b) -> tuple:
-    """``(mixture BC policy, record)``: the mixture trained for ``bc_max_epochs`` x each of
-    :data:`MATCH_SCALES` until its mean action scores within :data:`MATCH_TOLERANCE` of the
-    same seed's plain BC on the match episodes (module docstring); the record holds the
-    target, every try's score and epochs, and whether it matched."""
-    protocol.check_disjoint(task, {"match": (MATCH_SEED, MATCH_EPISODES),
-                                   "evaluation": (protocol.expert_eval_seed(0),
-                                                  b.il_eval_episodes)})
-    target = _match_score(task, _plain(task, demos, seed, b))
-    tries = []
-    for scale in MATCH_SCALES:
-        cfg = dataclasses.replace(_t1._bc_config(b, seed, True, full=True),
-                                  epochs=scale * b.bc_max_epochs)
-        policy = _bc.train(task, demos, cfg, progress=False).policy
-        tries.append({"epochs": cfg.epochs, "scaled_return": _match_score(task, policy)})
-        if tries[-1]["scaled_return"] >= target - MATCH_TOLERANCE:
-            break
-    return policy, {"target": target, "tries": tries,
-                    "matched": tries[-1]["scaled_return"] >= target - MATCH_TOLERANCE}
 
 
 def _start(row: Row, task, demos, seed, b, c):
@@ -253,7 +221,7 @@ def run_cell(cell, needs):
         ev = _evaluation.evaluate_policy(cell.task, policy, reference,
                                          n_episodes=c["eval_episodes"], seed=c["eval_seed"],
                                          actions=_evaluation.COMPONENTS)
-        out["final"][_evaluation.COMPONENTS] = _im.protocol.measures_of(ev)
+        out["final"][_evaluation.COMPONENTS] = protocol.measures_of(ev)
     return out, feats
 
 
@@ -310,8 +278,7 @@ def aggregate(records, b) -> dict:
            "protocol": {k: v for k, v in _im.protocol_config(b).items() if k != "steps"},
            "rows": {k: dataclasses.asdict(v) for k, v in table.items()},
            "learners": _bench.learners(), "steps": {t: b.benchmark_steps_for(t) for t in TASKS},
-           "match": {"seed": MATCH_SEED, "episodes": MATCH_EPISODES,
-                     "tolerance": MATCH_TOLERANCE, "scales": list(MATCH_SCALES)},
+           "match": dict(_match.RULE),
            _gate.GRID_MARK: _gate.RULES}
     out.update(_t1.both_evaluations(records, observations, pairs, b.il_eval_episodes,
                                     actions=EVALUATIONS))
