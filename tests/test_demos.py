@@ -24,8 +24,11 @@ def test_demonstrations_are_shipped_and_data_stays_small():
     size = sum(p.stat().st_size for p in (ROOT / "data").rglob("*")
                if p.is_file() and ".sac" not in p.suffixes)
     # 60 MB until 2026-12-05; then the planner's demonstrations of walker, ant and humanoid
-    # (15 MB) stayed beside the network experts' as the documented variant "planner"
-    assert size < 80e6, f"data/ holds {size / 1e6:.1f} MB"
+    # (15 MB) stayed beside the network experts' as the documented variant "planner"; 80 MB
+    # until 2026-12-06, when the rerun grids' cells (the record every aggregate is made from,
+    # about 60 KB a cell) passed it with 167 Table I cells still to come: about 100 MB when
+    # every grid is complete
+    assert size < 120e6, f"data/ holds {size / 1e6:.1f} MB"
 
 
 def _set(name: str):

@@ -310,12 +310,15 @@ def both_evaluations(records, observe, pairs, eval_episodes: int,
     table, the expert row, the paired differences of ``pairs`` (the aggregate's measures and the TV of a seed's mode shares from the
     reference's: the mode question's own measure, per seed so that it pairs), the mode
     summary and the observations ``observe(records, actions)`` gives (this study's and
-    ``modes``')."""
+    ``modes``'; a run's training ``curve`` only in the mean action's, which
+    ``table_one.curves`` reads)."""
     from dc_lesson.experiments import aggregate as _agg
     shares = _im.reference_shares(records)
     out, kinds = {}, actions
     for actions in kinds:
         obs = observe(records, actions)   # the expert row: its one evaluation in both
+        if actions != "mean":   # a run's training curve is one, whatever the evaluation:
+            obs = [{k: v for k, v in o.items() if k != "curve"} for o in obs]   # kept once
         for o in obs:
             ref = shares.get(o["task"])
             o["mode_tv"] = _stats.tv(ref, o["mode_shares"]) if ref and o.get(
