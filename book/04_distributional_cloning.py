@@ -693,7 +693,9 @@ if modes_rec is not None:
 # paper's 70/30 BC), so it judges the whole recipe. The mixture DC is an RL learner of its
 # own, so it passes chapter 5's competence gate before any comparison with it is judged
 # (its row there is *DC (mixture policy)*); until then those words read "not judged", with
-# the gate's reason.
+# the gate's reason. That gate asks it to keep a perfect start, so a task where its mixture
+# start never matched plain BC leaves the question unasked: if that is all that holds it
+# back, it *cannot* show competence on our ports, and its comparisons stay not judged.
 
 # %%
 from dc_lesson.experiments import table_one_mixture

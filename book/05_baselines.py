@@ -432,7 +432,9 @@ if t1 is not None:
 # too, as its own row: DC's settings from the start those rows have, the mixture BC trained
 # until it matches plain BC (to keep) or stopped after one epoch (to learn). Where its
 # mixture start never matched plain BC, the keep question is not asked of that task: a
-# start that is not perfect cannot be kept, and the gate says so instead of passing.
+# start that is not perfect cannot be kept, and the gate says so instead of passing. No seed
+# to come changes that, so a variant held back only there *cannot* show competence on our
+# ports (the gate's word, not "not yet"), and its rows stay "not judged".
 #
 # The thresholds were declared before any cell ran (printed below, from the study), and so
 # were the rules every learner runs with: the start's exploration noise and, on hopper, the

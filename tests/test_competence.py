@@ -509,6 +509,9 @@ def test_brief_cuts_a_gate_reason_to_its_head_and_keeps_other_text():
             "ended more than 0.05 below its start on 2 of 10 seeds)")
     assert gate.brief(long) == "not judged on reacher4 (gail failed the competence gate)"
     assert gate.brief("inconclusive") == "inconclusive"
+    assert gate.brief("not judged: dc-mix cannot show competence on our ports — keep on "
+                      "cartpole: its mixture start did not match") == \
+        "not judged: dc-mix cannot show competence on our ports"
 
 
 def test_the_mixture_variant_is_dc_from_a_mixture_start_gated_like_every_learner():
@@ -599,3 +602,41 @@ def test_a_mixture_variant_cell_records_its_match_and_the_aggregate_reads_it():
     record = {"cell": cell.identity(), "result": res, "timing": {}}
     obs = comp.aggregate([record], smoke)["observations"]
     assert obs[0]["row"] == "dc-mix" and obs[0]["match_record"] is res["match"]["matched"]
+
+
+def test_a_gate_held_only_by_an_unaskable_part_says_it_cannot_pass_not_yet():
+    """dc-mix's cartpole keep part: its mixture start never matched plain BC on any seed, so
+    no seed to come decides it. The gate, the verdicts' phrase and the chapter's word say it
+    cannot be shown (not "not yet"); while another part still has seeds to run, "not yet"."""
+    from dc_lesson.experiments import competence as report
+    obs = []
+    for learner in ("dc", "dc-mix"):
+        for part, tasks, n in (("keep", comp.KEEP_TASKS, 10), ("learn", comp.LEARN_TASKS, 5)):
+            for task in tasks:
+                good = (1.0, 1.0) if part == "keep" else (0.1, 0.9)
+                unmatched = learner == "dc-mix" and part == "keep" and task == "cartpole"
+                for s in range(n):
+                    obs.append({"row": learner, "part": part, "task": task, "seed": s,
+                                "start": 0.6 if unmatched else good[0], "final": good[1],
+                                "curve": [good[1]], "match_record": (
+                                    None if learner == "dc" or part == "learn"
+                                    else not unmatched)})
+    seeds = {"keep": 10, "learn": 5}
+    g = comp.gate(obs, seeds=seeds)
+    assert g["dc"]["passed"] is True
+    assert g["dc-mix"]["passed"] is None and g["dc-mix"]["open"] is False
+    assert comp.UNMATCHED in g["dc-mix"]["reason"]
+    phrase = comp.competence({"gate": g})["dc-mix"]
+    assert phrase.startswith("cannot show competence on our ports — keep on cartpole")
+    words = report.gate_words({"observations": obs, "budget": "lesson"})
+    mix, dc = report.NAMES["dc-mix"], report.NAMES["dc"]
+    assert words[mix].startswith(report.CANNOT) and words[dc] == "passed"
+    assert "cannot pass" in report.sentence({"observations": obs, "budget": "lesson"})
+    # one hopper learn seed still to run: open, "not yet"
+    fewer = [o for o in obs if not (o["row"] == "dc-mix" and o["part"] == "learn"
+                                    and o["task"] == "hopper" and o["seed"] == 4)]
+    g = comp.gate(fewer, seeds=seeds)
+    assert g["dc-mix"]["open"] is True
+    assert comp.competence({"gate": g})["dc-mix"].startswith("has not yet shown competence")
+    assert report.gate_words({"observations": fewer, "budget": "lesson"})[
+        mix].startswith("not yet shown")

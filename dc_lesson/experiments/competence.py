@@ -59,11 +59,12 @@ PRE_GATE = ("passed the competence gate, but this grid ran before the gate's set
 
 def brief(text: str) -> str:
     """A verdict's reason cut to its head for a table cell: a passed learner's
-    :data:`PRE_GATE` becomes "ran before the gate's settings", a failed learner's reason
-    stops before its " — " details; any other text is returned unchanged (the prose states
-    the full reasons once)."""
+    :data:`PRE_GATE` becomes "ran before the gate's settings", the reason of a learner that
+    failed, or cannot show competence on our ports, stops before its " — " details; any
+    other text is returned unchanged (the prose states the full reasons once)."""
     text = text.replace(PRE_GATE, "ran before the gate's settings")
-    if "failed the competence gate" not in text or " — " not in text:
+    if (("failed the competence gate" not in text
+         and "cannot show competence" not in text) or " — " not in text):
         return text
     head = text.split(" — ")[0]
     return head + ")" * (head.count("(") - head.count(")"))   # close what the cut left open
@@ -135,7 +136,7 @@ def rows(rec: dict) -> list[dict]:
                 short = len(runs) < needed.get(part, 0)
                 word = ({True: "passes", False: "fails: " + why,
                          None: (NOT_DECIDED if short and _study.UNMATCHED not in why
-                                else "not informative: ") + why}[ok]
+                                else NOT_INFORMATIVE) + why}[ok]
                         if not why.startswith(_study.REFERENCE_MATCHED) else
                         AS_REFERENCE + why[len(_study.REFERENCE_MATCHED):])
                 out.append({"learner": NAMES[learner], "part": part, "task": task,
@@ -148,6 +149,8 @@ def rows(rec: dict) -> list[dict]:
 
 AS_REFERENCE = "as the reference: "   # a failed part a standard library's run matches
 NOT_DECIDED = "not decided yet: "     # a part with seeds still to run (studies.competence.so_far)
+NOT_INFORMATIVE = "not informative: "  # a part no seed to come can decide
+CANNOT = "cannot be shown: "           # a learner whose open parts are all not informative
 
 
 def _passes(word: str) -> bool:
@@ -156,8 +159,10 @@ def _passes(word: str) -> bool:
 
 def gate_words(rec: dict) -> dict[str, str]:
     """Per learner, the gate's word on the seeds on record: "passed" (every part passes),
-    "failed: why" (a part on record fails), or "not yet shown: why" (a part not run, not
-    decided on the seeds on record, or not informative; none failing)."""
+    "failed: why" (a part on record fails), "not yet shown: why" (a part not run or not
+    decided on the seeds on record; none failing), or "cannot be shown: why" (none failing
+    or to run, but a part not informative: a mixture start that never matched plain BC, or
+    a weak start that was not weak; no seed to come changes it)."""
     out: dict[str, list] = {}
     for r in rows(rec):
         out.setdefault(r["learner"], []).append(r)
@@ -166,9 +171,12 @@ def gate_words(rec: dict) -> dict[str, str]:
         failed = [f"{r['part']} on {r['task']}: {r['word'][len('fails: '):]}" for r in parts
                   if r["word"].startswith("fails")]
         open_ = [f"{r['part']} on {r['task']}" for r in parts if not _passes(r["word"])
-                 and not r["word"].startswith("fails")]
+                 and not r["word"].startswith(("fails", NOT_INFORMATIVE))]
+        unasked = [f"{r['part']} on {r['task']}" for r in parts
+                   if r["word"].startswith(NOT_INFORMATIVE)]
         words[learner] = ("failed: " + "; ".join(failed) if failed else
                           "not yet shown: " + ", ".join(open_) + " to run" if open_ else
+                          CANNOT + ", ".join(unasked) + " not informative" if unasked else
                           "passed")
     return words
 
@@ -346,6 +354,7 @@ def sentence(rec: dict) -> str:
     passed = [k for k, w in words.items() if w == "passed"]
     failed = [k for k, w in words.items() if w.startswith("failed")]
     pending = [k for k, w in words.items() if w.startswith("not yet")]
+    cannot = [k for k, w in words.items() if w.startswith(CANNOT)]
     parts: list[str] = []
     if passed:
         parts.append("passed the whole gate: " + ", ".join(passed))
@@ -355,10 +364,13 @@ def sentence(rec: dict) -> str:
     if pending:
         parts.append("not yet shown, with parts still to run (not judged either until "
                      "they pass): " + ", ".join(pending))
+    if cannot:
+        parts.append("failed no part but cannot pass, a part's question not being askable "
+                     "of them on our ports (not judged either): " + ", ".join(cannot))
     return "On the cells on record, " + "; ".join(parts) + "."
 
 
-__all__ = ["AS_REFERENCE", "GRID_MARK", "NAMES", "NOT_DECIDED", "ON_PPO", "PLATEAU_TAIL",
+__all__ = ["AS_REFERENCE", "CANNOT", "GRID_MARK", "NAMES", "NOT_DECIDED", "NOT_INFORMATIVE", "ON_PPO", "PLATEAU_TAIL",
            "PLATEAU_TOLERANCE", "PRE_GATE", "RESULT", "RULES", "STORED", "beside_control", "brief",
            "budgets", "curves", "gate_words", "load", "mapping", "overview", "plateau",
            "reference_table", "resolve", "rows", "sentence", "status", "under_gate"]

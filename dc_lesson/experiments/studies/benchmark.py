@@ -110,7 +110,9 @@ def learners(competence: dict | None = None) -> dict[str, str]:
         out[name] = ("passed" if g and g["passed"] is True else
                      "no competence study on record" if g is None else
                      f"failed the competence gate: {g['reason']}" if g["passed"] is False
-                     else f"the competence gate has not decided yet: {g['reason']}")
+                     else f"the competence gate has not decided yet: {g['reason']}"
+                     if g.get("open", True) else
+                     f"the competence gate cannot decide on our ports: {g['reason']}")
     return out
 
 

@@ -298,6 +298,7 @@ def mixture_start(task: str, demos, seed: int, b, part: str) -> tuple:
 # -- the gate ----------------------------------------------------------------------------------
 
 NOT_RUN = "not run yet"
+ON_RECORD = "seeds on record"   # the end of a part's reason while seeds are still to run
 UNMATCHED = "its mixture start did not match plain BC"
 
 
@@ -451,7 +452,7 @@ def so_far(part: str, runs: list[dict], n_seeds: int, gate_dip: bool = True
     :data:`KEEP_SHARE` of ``n_seeds`` allows), else None: a pass or a shortfall on some of
     the seeds is not yet the study's (one failed seed in three is within the keep rule's
     allowance of ten; a learn mean moves with every seed)."""
-    have = f"{len(runs)} of {n_seeds} seeds on record"
+    have = f"{len(runs)} of {n_seeds} {ON_RECORD}"
     unmatched = sum(r.get("matched") is False for r in runs)
     runs_all, runs = runs, [r for r in runs if r.get("matched") is not False]
     if part == "keep" and runs:   # the seeds whose start is the keep question's
@@ -505,7 +506,9 @@ def gate(observations: list[dict], knife: frozenset[str] = frozenset(),
     """Per learner: ``{"passed": bool | None, "reason": str}`` from the aggregate's
     observations.  False when a part on record fails (the reason names the failing parts),
     None when none fails but a part is not run, not informative or not yet run on all its
-    seeds (the reason names those), True when every part passes.  ``knife``: the knife-edge
+    seeds (the reason names those; ``"open"`` says whether a part is still to run or decide:
+    False when only a not-informative part, which no seed to come changes, holds it back),
+    True when every part passes.  ``knife``: the knife-edge
     tasks, whose dips are not gated; ``references``: :func:`stored_references`' mapping, a
     failure it matches passes; ``seeds``: :func:`part_seeds`, the seeds a part needs before
     it is decided (None: the seeds on record are the whole part)."""
@@ -529,6 +532,9 @@ def gate(observations: list[dict], knife: frozenset[str] = frozenset(),
         out[learner] = {"passed": passed,
                         "reason": "; ".join(why for ok, why in reasons if ok is passed
                                             and passed is not True)}
+        if passed is None:   # open: a part still to run or decide; else none can decide it
+            out[learner]["open"] = any(ok is None and why.endswith((NOT_RUN, ON_RECORD))
+                                       for ok, why in reasons)
     return out
 
 
@@ -541,7 +547,8 @@ def competence(aggregate: dict, knife: frozenset[str] = frozenset(),
     g = (gate(aggregate["observations"], knife, references, budget_seeds(aggregate))
          if "observations" in aggregate else aggregate["gate"])
     out = {k: (f"failed the competence gate — {v['reason']}" if v["passed"] is False
-               else f"has not yet shown competence — {v['reason']}")
+               else f"has not yet shown competence — {v['reason']}" if v.get("open", True)
+               else f"cannot show competence on our ports — {v['reason']}")
            for k, v in g.items() if v["passed"] is not True}
     # a variant that passed is named with no phrase, so that a verdict on its rows stops at
     # it instead of reading its learner's word (verdicts.rows_gate)
@@ -577,7 +584,7 @@ STUDY = cells.Study(NAME, "every RL learner keeps a perfect start and learns fro
                     result_file="competence.json")
 
 __all__ = ["DIP_NOT_GATED", "KEEP_TASKS", "KNIFE_EDGE_SHARE", "LEARNERS", "LEARN_TASKS", "NAME",
-           "UNMATCHED", "VARIANTS", "algorithm", "judge_starts", "mixture_start",
+           "ON_RECORD", "UNMATCHED", "VARIANTS", "algorithm", "judge_starts", "mixture_start",
            "STEP_SCALE", "STUDY", "aggregate", "budget_seeds", "cells_at", "competence", "gate",
            "judge_part", "part_seeds", "so_far",
            "keeps", "knife_edge", "learns", "matches_reference", "reference_records",
