@@ -32,7 +32,8 @@ STORED = "stored"    # the default of every verdict entry point: read the stored
 def mapping(rec: dict | None = None) -> dict[str, str]:
     """The gate as verdicts read it: learner -> the phrase after its name in a "not judged"
     verdict, for every learner of the study that has not passed ("failed the competence gate
-    — why" or "has not yet shown competence — why"), and ``""`` for a variant that passed
+    — why", "has not yet shown competence — why" or, held back only by a part no seed can
+    decide, "cannot show competence on our ports — why"), and ``""`` for a variant that passed
     (so that its rows never read their learner's word).  From the stored aggregate (``rec``
     None), re-judged by today's rules; with no aggregate on record no learner has shown
     competence, so none is judged."""

@@ -264,7 +264,8 @@ def competence_gate(claim: Claim, competence: dict | None) -> str | None:
     """Why ``claim`` is not judged for its rows' competence, or None.  ``competence`` maps a
     learner (``"gail"``; a row ``"gail-coin"`` or ``"dc@lr"`` is its learner's) to the phrase
     that follows its name: ``"failed the competence gate — why"``, ``"has not yet shown
-    competence — why"`` (:func:`dc_lesson.experiments.competence.mapping`)."""
+    competence — why"``, ``"cannot show competence on our ports — why"``
+    (:func:`dc_lesson.experiments.competence.mapping`)."""
     # a family whose rows differ by task names them "a/b" (table_one.judge_entries)
     return rows_gate(tuple(r for x in (claim.b, claim.a) for r in x.split("/")), competence)
 
