@@ -695,7 +695,10 @@ if modes_rec is not None:
 # (its row there is *DC (mixture policy)*); until then those words read "not judged", with
 # the gate's reason. That gate asks it to keep a perfect start, so a task where its mixture
 # start never matched plain BC leaves the question unasked: if that is all that holds it
-# back, it *cannot* show competence on our ports, and its comparisons stay not judged.
+# back, it *cannot* show competence on our ports, and its comparisons stay not judged. If it
+# fails the gate, the rerun does not run its rows, as with every learner that failed, and
+# the comparisons with them are left out: the mixture question is then the mixture BC's
+# alone. The line under the tables says which it is.
 
 # %%
 from dc_lesson.experiments import table_one_mixture
@@ -723,12 +726,15 @@ def show_mixture(rec):
 
 if modes_rec is not None:
     show_mixture(modes_rec)
+    why = modes_rec.get("learners", {}).get("dc-mix")
+    print("DC with the mixture policy: " + (f"not run in this grid: it {why}" if why else
+          "its rows are in this grid; its gate decides whether they are judged"))
 
 # %% [markdown]
 # Where the episodes go, seeds pooled: each bar is one row's mean mode shares, under its
 # mean action (left of each group), sampled (lighter) and, in the rerun, with its drawn
 # component's mean (lightest, right); grey is *none*, the episodes that arrive nowhere. An
-# empty slot is a row with no matched seed yet.
+# empty slot is a row with no matched seed yet; a row the grid does not run is left out.
 
 
 # %%
@@ -739,6 +745,7 @@ def mode_share_bars(rec, title):
                               "dc-mix-coin")}
     fig, axes = plt.subplots(2, 3, figsize=(11, 6.2), sharey=True)
     for (demos, rows), line in zip(groups.items(), axes):
+        rows = [r for r in rows if table_one.in_grid(rec, r)]
         for ax, task in zip(line, table_one.TASKS):
             for i, row in enumerate(rows):
                 kinds = evaluations(rec)

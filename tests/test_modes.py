@@ -42,6 +42,22 @@ def test_rows_follow_the_gate_and_the_mixture_rows_run_on_fewer_seeds(gate):
     assert len(experts) == len(modes.TASKS) * lesson.modes_seeds
 
 
+def test_a_variant_that_failed_the_gate_loses_its_rows_and_the_aggregate_says_why(monkeypatch):
+    """dc-mix failed: its rows (dc-mix, dc-mix-coin) leave the grid, the mixture BC rows and
+    DC's own stay, and ``failed_variants`` gives the reason the aggregate records.  Undecided
+    (None), the rows stay: the gate may still pass it."""
+    lesson = budget.get("lesson")
+    for passed, gone in ((False, True), (None, False), (True, False)):
+        g = {"gate": {**GATE["gate"], "dc-mix": {"passed": passed, "reason": "keep on x"}}}
+        monkeypatch.setattr(bm, "_stored", lambda name: g if name == bm.COMPETENCE else None)
+        table = modes.rows()
+        assert ("dc-mix" not in table and "dc-mix-coin" not in table) is gone
+        assert {"dc", "dc-coin", "bc-mix", "bc-mix-coin", "bc-full-coin"} <= set(table)
+        assert not gone or not any(c.row.startswith("dc-mix") for c in modes.cells_at(lesson))
+        assert modes.failed_variants() == (
+            {"dc-mix": "failed the competence gate: keep on x"} if gone else {})
+
+
 def test_the_mixture_trains_longer_until_it_matches_plain_bc(monkeypatch):
     lesson = budget.get("lesson")
     trained = []

@@ -75,6 +75,11 @@ def _stored(name: str) -> dict | None:
         return None
 
 
+def stored_competence() -> dict | None:
+    """The stored competence aggregate, or None while none is on record."""
+    return _stored(COMPETENCE)
+
+
 def design(task: str, headroom: dict | None = None) -> dict:
     """The demonstrations of ``task`` in the benchmark: ``{"task", "protocol", "every",
     "counts", "why"}`` from the headroom aggregate (the stored one when ``headroom`` is None);
@@ -285,4 +290,4 @@ STUDY = cells.Study(NAME, "the benchmark with headroom (issue 41): Table III, Fi
 
 __all__ = ["EPOCH_FIELDS", "curve_total", "FALLBACK_COUNTS", "NAME", "RL", "STUDY", "TASKS", "bc_settings", "cached_start",
            "cells_at", "demonstrations", "design", "evaluator", "observations", "learner_config", "learners", "listed", "run_cell",
-           "start_policy"]
+           "start_policy", "stored_competence"]

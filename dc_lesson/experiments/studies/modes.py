@@ -61,7 +61,9 @@ shrink a component onto its own pairs, and no number of epochs matched plain BC:
 module's docstring has the measurements); the floor is part of a mixture cell's identity.
 
 Not run: GAIL and its variants and the other baselines that failed the competence gate
-(``learners`` in the aggregate says why); the first grid's DC diagnostics (``dc-noppo``,
+(``learners`` in the aggregate says why), and the rows of a gated variant that failed it
+(:func:`failed_variants`: ``dc-mix`` and ``dc-mix-coin`` once ``dc-mix`` failed, on 6
+December, its cartpole keep part; the rows were listed while its gate was undecided); the first grid's DC diagnostics (``dc-noppo``,
 ``dc-raw``, ``dc-gailreward``), which explain DC rather than judge a claim.
 """
 
@@ -120,11 +122,25 @@ FIXED_ROWS = (
 )
 
 
+def failed_variants(competence: dict | None = None) -> dict[str, str]:
+    """Each gated variant (``competence.VARIANTS``: ``dc-mix``) that failed the gate -> why
+    (the stored gate when ``competence`` is None).  Its rows are not run, like every learner
+    that failed: no verdict could judge them.  A variant not yet decided keeps its rows."""
+    gate = (_bench.stored_competence() if competence is None else competence or {}).get(
+        "gate", {})
+    return {k: f"failed the competence gate: {gate[k]['reason']}"
+            for k in _competence.VARIANTS if gate.get(k, {}).get("passed") is False}
+
+
 def rows(competence: dict | None = None) -> dict[str, Row]:
-    """The rows: :data:`FIXED_ROWS` and, at stage 3, every other RL learner that passed the
+    """The rows: :data:`FIXED_ROWS` but those of a variant that failed the gate
+    (:func:`failed_variants`), and, at stage 3, every other RL learner that passed the
     gate (``benchmark.listed``), from the 70/30 start."""
+    failed = failed_variants(competence)
+    fixed = tuple(r for r in FIXED_ROWS
+                  if not any(r.name == k or r.name.startswith(k + "-") for k in failed))
     extra = [Row(x, "", 3) for x in _bench.listed(competence) if x not in ("bc", "dc")]
-    return {r.name: r for r in FIXED_ROWS + tuple(extra)}
+    return {r.name: r for r in fixed + tuple(extra)}
 
 
 def seeds(row: Row, b) -> range:
@@ -277,7 +293,7 @@ def aggregate(records, b) -> dict:
     out = {"interval": "95% bootstrap (BCa) over seeds; paired: of the per-seed differences",
            "protocol": {k: v for k, v in _im.protocol_config(b).items() if k != "steps"},
            "rows": {k: dataclasses.asdict(v) for k, v in table.items()},
-           "learners": _bench.learners(), "steps": {t: b.benchmark_steps_for(t) for t in TASKS},
+           "learners": {**_bench.learners(), **failed_variants()}, "steps": {t: b.benchmark_steps_for(t) for t in TASKS},
            "match": dict(_match.RULE),
            _gate.GRID_MARK: _gate.RULES}
     out.update(_t1.both_evaluations(records, observations, pairs, b.il_eval_episodes,
@@ -290,7 +306,7 @@ STUDY = cells.Study(NAME, "Table I rerun under the gate: the multi-mode tasks, t
                     run_cell=lambda c, n: _common.run_expert_or(c, n, run_cell),
                     aggregate=aggregate, result_file="modes.json")
 
-__all__ = ["EVALUATIONS", "FIXED_ROWS", "MATCH_EPISODES", "MATCH_SCALES", "MATCH_SEED",
+__all__ = ["EVALUATIONS", "FIXED_ROWS", "failed_variants", "MATCH_EPISODES", "MATCH_SCALES", "MATCH_SEED",
            "MATCH_TOLERANCE",
            "NAME", "PAIRS", "Row", "STUDY", "TASKS", "cells_at", "learner_config",
            "matched_mixture", "observations", "rows", "run_cell", "seeds"]
