@@ -573,6 +573,10 @@ def test_a_mixture_start_that_never_matched_plain_bc_leaves_keeping_unasked():
     # the matched seeds are judged first: a failure they already show is a failure
     falls = [dict(r, final=0.0, curve=[0.0]) if i < 3 else r for i, r in enumerate(runs)]
     assert comp.keeps(falls)[0] is False and comp.so_far("keep", falls[:4], 10)[0] is False
+    # a matched seed's dip: the reason says whose (the table's worst fall is every seed's)
+    dips = [dict(r, curve=[0.7, 1.0]) if i == 0 else r for i, r in enumerate(runs)]
+    ok, why = comp.keeps(dips)
+    assert ok is False and why == "a checkpoint of a seed whose start matched fell 0.30 below its start"
 
 
 def test_a_mixture_start_matches_only_if_it_is_as_good_as_plain_bc_where_the_gate_looks():

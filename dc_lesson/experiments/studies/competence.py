@@ -463,7 +463,9 @@ def so_far(part: str, runs: list[dict], n_seeds: int, gate_dip: bool = True
                            f"{have} (the rule allows {allowed} of {n_seeds})")
         dip = max(r["start"] - min(r["curve"] or [r["final"]]) for r in runs)
         if gate_dip and dip > MAX_DIP:
-            return False, f"a checkpoint fell {dip:.2f} below its start"
+            # the table's worst fall is over every seed: say this one is a matched seed's
+            whose = " of a seed whose start matched" if unmatched else ""
+            return False, f"a checkpoint{whose} fell {dip:.2f} below its start"
     if part == "keep" and unmatched:   # final: no seed to come makes a start perfect
         return None, (f"{UNMATCHED} on {unmatched} of {len(runs_all)} seeds: a start that "
                       f"is not perfect cannot be kept")
