@@ -63,8 +63,9 @@ module's docstring has the measurements); the floor is part of a mixture cell's 
 Not run: GAIL and its variants and the other baselines that failed the competence gate
 (``learners`` in the aggregate says why), and the rows of a gated variant that failed it
 (:func:`failed_variants`: ``dc-mix`` and ``dc-mix-coin`` once ``dc-mix`` failed, on 6
-December, its cartpole keep part; the rows were listed while its gate was undecided); the first grid's DC diagnostics (``dc-noppo``,
-``dc-raw``, ``dc-gailreward``), which explain DC rather than judge a claim.
+December, its cartpole keep part; the rows were listed while its gate was undecided); the
+first grid's DC diagnostics (``dc-noppo``, ``dc-raw``, ``dc-gailreward``), which explain DC
+rather than judge a claim.
 """
 
 from __future__ import annotations
