@@ -14,15 +14,15 @@ def run(start, final, curve=()):
 
 def test_keeping_allows_the_tolerance_and_one_seed_in_ten():
     ok = [run(1.0, 0.96, [0.99, 0.97])] * 9 + [run(1.0, 0.7, [0.85])]
-    assert comp.keeps(ok) == (True, "")
+    assert comp.keeps(ok) == (True, "", True)
     two_bad = [run(1.0, 0.96)] * 8 + [run(1.0, 0.7)] * 2
-    passed, why = comp.keeps(two_bad)
+    passed, why, _ = comp.keeps(two_bad)
     assert not passed and "2 of 10 seeds" in why
 
 
 def test_a_dip_below_the_start_fails_even_when_the_end_recovers():
     runs = [run(1.0, 1.0, [1.0, 0.75, 1.0])] + [run(1.0, 1.0, [1.0])] * 9
-    passed, why = comp.keeps(runs)
+    passed, why, _ = comp.keeps(runs)
     assert not passed and "0.25 below" in why
 
 
@@ -36,7 +36,7 @@ def test_a_knife_edge_start_shows_its_dips_and_judges_by_the_finals():
     assert comp.knife_edge(None) == frozenset()
     dipping = [run(1.0, 1.0, [0.2, 1.0])] * 10
     assert comp.keeps(dipping)[0] is False
-    assert comp.keeps(dipping, gate_dip=False) == (True, comp.DIP_NOT_GATED)
+    assert comp.keeps(dipping, gate_dip=False)[:2] == (True, comp.DIP_NOT_GATED)
     # the finals rule still decides on a knife-edge task
     ending_low = [run(1.0, 0.7, [1.0])] * 2 + [run(1.0, 1.0, [1.0])] * 8
     assert comp.keeps(ending_low, gate_dip=False)[0] is False
@@ -46,12 +46,13 @@ def test_a_knife_edge_start_shows_its_dips_and_judges_by_the_finals():
 
 
 def test_learning_needs_the_floor_from_a_start_that_is_weak():
-    assert comp.learns([run(0.2, 0.85), run(0.1, 0.8)]) == (True, "")
-    passed, why = comp.learns([run(0.2, 0.6), run(0.3, 0.7)])
+    assert comp.learns([run(0.2, 0.85), run(0.1, 0.8)])[:2] == (True, "")
+    passed, why, _ = comp.learns([run(0.2, 0.6), run(0.3, 0.7)])
     assert passed is False and "0.65" in why
     # a start already near the expert says nothing about learning: neither pass nor fail
-    passed, why = comp.learns([run(0.9, 0.95)] * 5)
+    passed, why, open_ = comp.learns([run(0.9, 0.95)] * 5)
     assert passed is None and "not weak" in why
+    assert not open_   # more seeds of a start that is not weak would not make it weak
 
 
 def _obs(learner, part, task, start, final, seeds, curve=None):
@@ -257,15 +258,15 @@ def test_a_part_with_seeds_still_to_run_is_decided_only_where_they_cannot_change
     assert comp.judge_part("keep", "cartpole", runs([1.0] * 3), n_seeds=10)[0] is None
     # one of three ended low: within the rule's allowance of 1 in 10, so not yet a failure
     assert comp.judge_part("keep", "cartpole", runs([1.0, 1.0, 0.5]), n_seeds=10)[0] is None
-    ok, why = comp.judge_part("keep", "cartpole", runs([1.0, 0.5, 0.5]), n_seeds=10)
+    ok, why, _ = comp.judge_part("keep", "cartpole", runs([1.0, 0.5, 0.5]), n_seeds=10)
     assert ok is False and "allows 1 of 10" in why                  # no seed can undo it
     assert comp.judge_part("keep", "cartpole", runs([1.0], dip=0.3), n_seeds=10)[0] is False
     assert comp.judge_part("keep", "hopper", runs([1.0], dip=0.3), frozenset({"hopper"}),
                            n_seeds=10)[0] is None                   # a knife-edge dip
     learn = [{"start": 0.0, "final": 0.9, "curve": [0.9]}] * 2
     assert comp.judge_part("learn", "hopper", learn, n_seeds=5) == (None, "2 of 5 seeds on "
-                                                                        "record")
-    assert comp.judge_part("learn", "hopper", learn * 3, n_seeds=5) == (True, "")
+                                                                        "record", True)
+    assert comp.judge_part("learn", "hopper", learn * 3, n_seeds=5)[:2] == (True, "")
     # the gate: a learner whose every part passes on some of its seeds has not yet passed
     obs = [dict(r, row="dril", part="keep", task=t) for t in comp.KEEP_TASKS
            for r in runs([1.0] * 2)]
@@ -494,7 +495,7 @@ def test_a_failure_a_standard_library_shares_is_the_algorithm_s_not_ours():
     assert "learn on hopper" in comp.gate(learn)["gail"]["reason"]
     assert "learn on hopper" not in comp.gate(learn, references=refs)["gail"]["reason"]
     # the part passes with the reference's evidence as its reason; a kept failure stays
-    passed, why = comp.judge_part("learn", "hopper", learn, reference=refs[("gail", "learn",
+    passed, why, _ = comp.judge_part("learn", "hopper", learn, reference=refs[("gail", "learn",
                                                                           "hopper")])
     assert passed and why.startswith(comp.REFERENCE_MATCHED) and "paired seeds" in why
     assert comp.judge_part("learn", "hopper", learn,
@@ -563,19 +564,20 @@ def test_a_mixture_start_that_never_matched_plain_bc_leaves_keeping_unasked():
     """A keep part with a seed whose mixture start did not match plain BC is not informative
     (None, with the reason), never passed or failed, on all seeds or while seeds are to come."""
     runs = [{"start": 1.0, "final": 1.0, "curve": [1.0], "matched": True} for _ in range(10)]
-    assert comp.keeps(runs) == (True, "")
+    assert comp.keeps(runs)[:2] == (True, "")
     runs[3] = dict(runs[3], matched=False, start=0.3, final=0.0, curve=[0.0])
-    ok, why = comp.keeps(runs)
-    assert ok is None and "did not match plain BC on 1 of 10 seeds" in why
-    ok, why = comp.so_far("keep", runs[:4], 10)
-    assert ok is None and "did not match" in why
+    ok, why, open_ = comp.keeps(runs)
+    assert ok is None and "did not match plain BC on 1 of 10 seeds" in why and not open_
+    ok, why, open_ = comp.so_far("keep", runs[:4], 10)
+    assert ok is None and "did not match" in why and not open_
+    assert comp.so_far("keep", [runs[0]], 10).open   # a matched seed alone: seeds to come
     assert comp.keeps([dict(r, matched=None) for r in runs[:3]])[0] is not None  # a Gaussian
     # the matched seeds are judged first: a failure they already show is a failure
     falls = [dict(r, final=0.0, curve=[0.0]) if i < 3 else r for i, r in enumerate(runs)]
     assert comp.keeps(falls)[0] is False and comp.so_far("keep", falls[:4], 10)[0] is False
     # a matched seed's dip: the reason says whose (the table's worst fall is every seed's)
     dips = [dict(r, curve=[0.7, 1.0]) if i == 0 else r for i, r in enumerate(runs)]
-    ok, why = comp.keeps(dips)
+    ok, why, _ = comp.keeps(dips)
     assert ok is False and why == "a checkpoint of a seed whose start matched fell 0.30 below its start"
 
 

@@ -129,15 +129,13 @@ def rows(rec: dict) -> list[dict]:
                                 "seeds": 0, "start": None, "final": None, "worst dip": None,
                                 "dip": gated, "word": "not run yet"})
                     continue
-                ok, why = _study.judge_part(
+                ok, why, open_ = _study.judge_part(
                     part, task, [{k: r.get(k) for k in ("start", "final", "curve", "matched")}
                                  for r in runs],
                     knife, refs.get((learner, part, task)), needed.get(part))
                 dip = max(r["start"] - min(r["curve"] or [r["final"]]) for r in runs)
-                short = len(runs) < needed.get(part, 0)
                 word = ({True: "passes", False: "fails: " + why,
-                         None: (NOT_DECIDED if short and _study.UNMATCHED not in why
-                                else NOT_INFORMATIVE) + why}[ok]
+                         None: (NOT_DECIDED if open_ else NOT_INFORMATIVE) + why}[ok]
                         if not why.startswith(_study.REFERENCE_MATCHED) else
                         AS_REFERENCE + why[len(_study.REFERENCE_MATCHED):])
                 out.append({"learner": NAMES[learner], "part": part, "task": task,

@@ -41,6 +41,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+from typing import NamedTuple
 
 import numpy as np
 
@@ -302,6 +303,17 @@ ON_RECORD = "seeds on record"   # the end of a part's reason while seeds are sti
 UNMATCHED = "its mixture start did not match plain BC"
 
 
+class Part(NamedTuple):
+    """One part's word on one task: ``ok`` True (passes), False (fails) or None (undecided),
+    ``why`` the reason in words, and, for an undecided part, ``open``: True while seeds still
+    to run (or not yet run) can decide it, False when none can (a start that is not weak, a
+    mixture start that never matched): the part is then *not informative*.  Said where the
+    reason is made, so that no caller reads the state back out of the words."""
+    ok: bool | None
+    why: str
+    open: bool = True
+
+
 def judge_starts(observations: list[dict]) -> list[dict]:
     """The observations with each mixture variant's keep-part ``matched`` decided by the
     gate: its match record matched (``match_record``, on the match episodes) and its start
@@ -409,44 +421,42 @@ def stored_references(observations: list[dict]) -> dict:
 REFERENCE_MATCHED = "fails, and the standard library's implementation does no better: "
 
 
-def keeps(runs: list[dict], gate_dip: bool = True) -> tuple[bool | None, str]:
+def keeps(runs: list[dict], gate_dip: bool = True) -> Part:
     """``runs``: one task's seeds, each ``{"start", "final", "curve"}`` scaled returns (curve:
     a list of them). Whether the learner kept its perfect start there, and why not; None
     while no seed has run (not shown is not failed).  ``gate_dip=False`` on a knife-edge
     task (:func:`knife_edge`): the finals rule alone decides, and a pass says so."""
     if not runs:
-        return None, NOT_RUN
+        return Part(None, NOT_RUN)
     if any(r.get("matched") is False for r in runs):   # a mixture variant (VARIANTS)
-        ok, why = so_far("keep", runs, len(runs), gate_dip)
-        return (False, why) if ok is False else (None, why)
+        return so_far("keep", runs, len(runs), gate_dip)
     kept = [r["final"] >= r["start"] - KEEP_TOLERANCE for r in runs]
     dips = [r["start"] - min(r["curve"] or [r["final"]]) for r in runs]
     if np.mean(kept) < KEEP_SHARE:
-        return False, (f"ended more than {KEEP_TOLERANCE} below its start on "
-                       f"{len(runs) - sum(kept)} of {len(runs)} seeds")
+        return Part(False, f"ended more than {KEEP_TOLERANCE} below its start on "
+                           f"{len(runs) - sum(kept)} of {len(runs)} seeds")
     if not gate_dip:
-        return True, DIP_NOT_GATED
+        return Part(True, DIP_NOT_GATED)
     if max(dips) > MAX_DIP:
-        return False, f"a checkpoint fell {max(dips):.2f} below its start"
-    return True, ""
+        return Part(False, f"a checkpoint fell {max(dips):.2f} below its start")
+    return Part(True, "")
 
 
-def learns(runs: list[dict]) -> tuple[bool | None, str]:
+def learns(runs: list[dict]) -> Part:
     """One task's seeds from the weak start: True / False, or None when the start was not
     weak (the question then tells nothing) or while no seed has run."""
     if not runs:
-        return None, NOT_RUN
+        return Part(None, NOT_RUN)
     start = float(np.mean([r["start"] for r in runs]))
-    if start > WEAK_CEILING:
-        return None, f"its weak start was not weak ({start:.2f} > {WEAK_CEILING})"
+    if start > WEAK_CEILING:   # more seeds of the same start would not make it weak
+        return Part(None, f"its weak start was not weak ({start:.2f} > {WEAK_CEILING})", False)
     final = float(np.mean([r["final"] for r in runs]))
     if final < LEARN_FLOOR:
-        return False, f"reached {final:.2f} from {start:.2f} (needs {LEARN_FLOOR})"
-    return True, ""
+        return Part(False, f"reached {final:.2f} from {start:.2f} (needs {LEARN_FLOOR})")
+    return Part(True, "")
 
 
-def so_far(part: str, runs: list[dict], n_seeds: int, gate_dip: bool = True
-           ) -> tuple[bool | None, str]:
+def so_far(part: str, runs: list[dict], n_seeds: int, gate_dip: bool = True) -> Part:
     """A part while fewer than its ``n_seeds`` seeds are on record: failed only where no seed
     still to come can change the word (a gated dip, or more seeds ended below their start than
     :data:`KEEP_SHARE` of ``n_seeds`` allows), else None: a pass or a shortfall on some of
@@ -459,36 +469,36 @@ def so_far(part: str, runs: list[dict], n_seeds: int, gate_dip: bool = True
         ended = sum(r["final"] < r["start"] - KEEP_TOLERANCE for r in runs)
         allowed = n_seeds - math.ceil(KEEP_SHARE * n_seeds - 1e-9)
         if ended > allowed:
-            return False, (f"ended more than {KEEP_TOLERANCE} below its start on {ended} of "
-                           f"{have} (the rule allows {allowed} of {n_seeds})")
+            return Part(False, f"ended more than {KEEP_TOLERANCE} below its start on {ended} "
+                               f"of {have} (the rule allows {allowed} of {n_seeds})")
         dip = max(r["start"] - min(r["curve"] or [r["final"]]) for r in runs)
         if gate_dip and dip > MAX_DIP:
             # the table's worst fall is over every seed: say this one is a matched seed's
             whose = " of a seed whose start matched" if unmatched else ""
-            return False, f"a checkpoint{whose} fell {dip:.2f} below its start"
+            return Part(False, f"a checkpoint{whose} fell {dip:.2f} below its start")
     if part == "keep" and unmatched:   # final: no seed to come makes a start perfect
-        return None, (f"{UNMATCHED} on {unmatched} of {len(runs_all)} seeds: a start that "
-                      f"is not perfect cannot be kept")
-    return None, have if runs_all else NOT_RUN
+        return Part(None, f"{UNMATCHED} on {unmatched} of {len(runs_all)} seeds: a start "
+                          f"that is not perfect cannot be kept", False)
+    return Part(None, have if runs_all else NOT_RUN)
 
 
 def judge_part(part: str, task: str, runs: list[dict],
                knife: frozenset[str] = frozenset(),
                reference: tuple[bool, str] | None = None,
-               n_seeds: int | None = None) -> tuple[bool | None, str]:
+               n_seeds: int | None = None) -> Part:
     """One part on one task: :func:`keeps` (its dip gated unless ``task`` is in ``knife``)
     or :func:`learns`; a failure that ``reference`` (:func:`matches_reference`) matches
     passes, with :data:`REFERENCE_MATCHED` and the reference's evidence as its reason.
     ``n_seeds``: the study's seeds for the part; with fewer on record the word is
     :func:`so_far`'s (None: every run on record is taken as the whole part)."""
     if n_seeds is not None and len(runs) < n_seeds:
-        ok, why = so_far(part, runs, n_seeds, gate_dip=task not in knife)
+        word = so_far(part, runs, n_seeds, gate_dip=task not in knife)
     else:
-        ok, why = (keeps(runs, gate_dip=task not in knife) if part == "keep"
-                   else learns(runs))
-    if ok is False and reference is not None and reference[0]:
-        return True, f"{REFERENCE_MATCHED}{why}; {reference[1]}"
-    return ok, why
+        word = (keeps(runs, gate_dip=task not in knife) if part == "keep"
+                else learns(runs))
+    if word.ok is False and reference is not None and reference[0]:
+        return Part(True, f"{REFERENCE_MATCHED}{word.why}; {reference[1]}")
+    return word
 
 
 def part_seeds(b) -> dict[str, int]:
@@ -518,25 +528,24 @@ def gate(observations: list[dict], knife: frozenset[str] = frozenset(),
     observations = judge_starts(observations)
     out = {}
     for learner in LEARNERS:
-        reasons, verdicts = [], []
+        words: list[Part] = []
         for part, tasks in (("keep", KEEP_TASKS), ("learn", LEARN_TASKS)):
             for task in tasks:
                 runs = [{"start": o["start"], "final": o["final"], "curve": o["curve"],
                          "matched": o.get("matched")}
                         for o in observations if o["row"] == learner and o["part"] == part
                         and o["task"] == task]
-                ok, why = judge_part(part, task, runs, knife,
-                                     references.get((learner, part, task)),
-                                     (seeds or {}).get(part))
-                verdicts.append(ok)
-                reasons.append((ok, f"{part} on {task}: {why}"))
-        passed = (False if False in verdicts else None if None in verdicts else True)
+                word = judge_part(part, task, runs, knife,
+                                  references.get((learner, part, task)),
+                                  (seeds or {}).get(part))
+                words.append(word._replace(why=f"{part} on {task}: {word.why}"))
+        oks = [w.ok for w in words]
+        passed = (False if False in oks else None if None in oks else True)
         out[learner] = {"passed": passed,
-                        "reason": "; ".join(why for ok, why in reasons if ok is passed
+                        "reason": "; ".join(w.why for w in words if w.ok is passed
                                             and passed is not True)}
         if passed is None:   # open: a part still to run or decide; else none can decide it
-            out[learner]["open"] = any(ok is None and why.endswith((NOT_RUN, ON_RECORD))
-                                       for ok, why in reasons)
+            out[learner]["open"] = any(w.ok is None and w.open for w in words)
     return out
 
 
@@ -586,7 +595,7 @@ STUDY = cells.Study(NAME, "every RL learner keeps a perfect start and learns fro
                     result_file="competence.json")
 
 __all__ = ["DIP_NOT_GATED", "KEEP_TASKS", "KNIFE_EDGE_SHARE", "LEARNERS", "LEARN_TASKS", "NAME",
-           "ON_RECORD", "UNMATCHED", "VARIANTS", "algorithm", "judge_starts", "mixture_start",
+           "ON_RECORD", "Part", "UNMATCHED", "VARIANTS", "algorithm", "judge_starts", "mixture_start",
            "STEP_SCALE", "STUDY", "aggregate", "budget_seeds", "cells_at", "competence", "gate",
            "judge_part", "part_seeds", "so_far",
            "keeps", "knife_edge", "learns", "matches_reference", "reference_records",
