@@ -446,8 +446,9 @@ display(pd.DataFrame(rows).fillna(""))
 # dc, dril      DC and DRIL from the 70/30 start
 # dc-lib        DC from bc-lib: the best BC a user could have had, as DC's start
 # bc-coin       the 70/30 BC on the hidden-coin demonstrations; dc-coin: DC from it
+# bc-full-coin  bc-full on the hidden-coin demonstrations: the mixture's control there
 # bc-mix        a 4-component mixture BC, trained until it matches plain BC's return
-# dc-mix        DC from it; *-coin: the same on the hidden-coin demonstrations
+# dc-mix        DC from it, run only if it passes the gate; *-coin: on the hidden coin
 # expert        the expert scored like a learner on disjoint episodes: the floor
 # ```
 #
