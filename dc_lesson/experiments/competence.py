@@ -370,6 +370,7 @@ def sentence(rec: dict) -> str:
 
 
 __all__ = ["AS_REFERENCE", "CANNOT", "GRID_MARK", "NAMES", "NOT_DECIDED", "NOT_INFORMATIVE",
-           "ON_PPO", "PLATEAU_TAIL", "PLATEAU_TOLERANCE", "PRE_GATE", "RESULT", "RULES", "STORED", "beside_control", "brief",
+           "ON_PPO", "PLATEAU_TAIL", "PLATEAU_TOLERANCE", "PRE_GATE", "RESULT", "RULES",
+           "STORED", "beside_control", "brief",
            "budgets", "curves", "gate_words", "load", "mapping", "overview", "plateau",
            "reference_table", "resolve", "rows", "sentence", "status", "under_gate"]
