@@ -129,15 +129,14 @@ def rows(rec: dict) -> list[dict]:
                                 "seeds": 0, "start": None, "final": None, "worst dip": None,
                                 "dip": gated, "word": "not run yet"})
                     continue
-                ok, why, open_ = _study.judge_part(
+                ok, why, open_, by_ref = _study.judge_part(
                     part, task, [{k: r.get(k) for k in ("start", "final", "curve", "matched")}
                                  for r in runs],
                     knife, refs.get((learner, part, task)), needed.get(part))
                 dip = max(r["start"] - min(r["curve"] or [r["final"]]) for r in runs)
-                word = ({True: "passes", False: "fails: " + why,
-                         None: (NOT_DECIDED if open_ else NOT_INFORMATIVE) + why}[ok]
-                        if not why.startswith(_study.REFERENCE_MATCHED) else
-                        AS_REFERENCE + why[len(_study.REFERENCE_MATCHED):])
+                word = (AS_REFERENCE + why if by_ref else
+                        {True: "passes", False: "fails: " + why,
+                         None: (NOT_DECIDED if open_ else NOT_INFORMATIVE) + why}[ok])
                 out.append({"learner": NAMES[learner], "part": part, "task": task,
                             "seeds": len(runs),
                             "start": float(np.mean([r["start"] for r in runs])),
@@ -273,11 +272,12 @@ def budgets(rec: dict) -> list[dict]:
     (:func:`plateau`) and its final level; then per task the budget, the latest plateau
     among the learners that pass the learn part there and have not failed the gate (the
     grids run no failed learner, so its slower curve would buy interactions no row uses; a
-    curve that never rose flattens at once and would say nothing), None while none does.  The keep part is not asked: it
-    judges stability, the budget asks how long learning takes.  The control (PPO on the
-    task's own reward, ``studies.competence.CONTROL``) is shown but does not set the budget:
-    no later grid runs it (decided in the sixth week, after its hopper curve, whose late dips
-    on two seeds had set hopper's budget, was on record; the chapter says so)."""
+    curve that never rose flattens at once and would say nothing), None while none does.  The
+    keep part is not asked: it judges stability, the budget asks how long learning takes.  The
+    control (PPO on the task's own reward, ``studies.competence.CONTROL``) is shown but does
+    not set the budget: no later grid runs it (decided in the sixth week, after its hopper
+    curve, whose late dips on two seeds had set hopper's budget, was on record; the chapter
+    says so)."""
     out = []
     failed = {k for k, g in rec.get("gate", {}).items() if g["passed"] is False}
     for task in _study.LEARN_TASKS:

@@ -26,9 +26,9 @@ all of them, and chapter 04's DC with a mixture policy from its own start (:data
 
 :func:`gate` turns the aggregate into one word per learner ("passed", or "failed the
 competence gate: <why>", or not yet decided while a part has seeds still to run and none of
-its failures is already certain: :func:`so_far`); :func:`competence` gives the mapping ``verdicts`` reads, so a
-comparison whose comparator failed is "not judged".  The thresholds are the issue's,
-declared before any cell ran.
+its failures is already certain: :func:`so_far`); :func:`competence` gives the mapping
+``verdicts`` reads, so a comparison whose comparator failed is "not judged".  The thresholds
+are the issue's, declared before any cell ran.
 
 Every learner runs with two shared rules (:func:`learner_config`), each chosen by a measured
 probe and each a named field of the learner's config: its start's exploration noise set to
@@ -134,8 +134,9 @@ TERMINATE = {"hopper": "hopper-fall"}
 # iterations (0.99 on seed 0), target_kl 0.005 (0.64 on seed 6).
 # GPRIL (same setting, seeds 0-3; its preset at smoke lost 0.78-0.89 of its start on
 # seeds 0-2): with the predecessors' weight w at 0.1 instead of 1 it ended at 1.00 on all
-# four, its worst checkpoint 0.00 / 0.00 / 0.20 / 0.00 below the start. Predecessors sampled from flows still fitting the learner's first
-# batches are noise, and at w = 1 they weigh as much as the expert's own pairs.
+# four, its worst checkpoint 0.00 / 0.00 / 0.20 / 0.00 below the start. Predecessors
+# sampled from flows still fitting the learner's first batches are noise, and at w = 1
+# they weigh as much as the expert's own pairs.
 # NDI (same setting, seeds 0-3): with advantages not standardised its entropy bonus (lambda
 # 0.01) still dropped it 0.63 and 0.33 at a checkpoint on two seeds; with lambda 0 as well,
 # at most 0.17 on all four. NDI here is then its density reward log q(s, a) alone: the
@@ -307,11 +308,13 @@ class Part(NamedTuple):
     """One part's word on one task: ``ok`` True (passes), False (fails) or None (undecided),
     ``why`` the reason in words, and, for an undecided part, ``open``: True while seeds still
     to run (or not yet run) can decide it, False when none can (a start that is not weak, a
-    mixture start that never matched): the part is then *not informative*.  Said where the
-    reason is made, so that no caller reads the state back out of the words."""
+    mixture start that never matched): the part is then *not informative*; ``by_reference``
+    True for a failure the standard library's run matches, which passes (:func:`judge_part`).
+    Said where the reason is made, so that no caller reads the state back out of the words."""
     ok: bool | None
     why: str
     open: bool = True
+    by_reference: bool = False
 
 
 def judge_starts(observations: list[dict]) -> list[dict]:
@@ -418,9 +421,6 @@ def stored_references(observations: list[dict]) -> dict:
     return out
 
 
-REFERENCE_MATCHED = "fails, and the standard library's implementation does no better: "
-
-
 def keeps(runs: list[dict], gate_dip: bool = True) -> Part:
     """``runs``: one task's seeds, each ``{"start", "final", "curve"}`` scaled returns (curve:
     a list of them). Whether the learner kept its perfect start there, and why not; None
@@ -488,7 +488,7 @@ def judge_part(part: str, task: str, runs: list[dict],
                n_seeds: int | None = None) -> Part:
     """One part on one task: :func:`keeps` (its dip gated unless ``task`` is in ``knife``)
     or :func:`learns`; a failure that ``reference`` (:func:`matches_reference`) matches
-    passes, with :data:`REFERENCE_MATCHED` and the reference's evidence as its reason.
+    passes (``by_reference``), with its failure and the reference's evidence as its reason.
     ``n_seeds``: the study's seeds for the part; with fewer on record the word is
     :func:`so_far`'s (None: every run on record is taken as the whole part)."""
     if n_seeds is not None and len(runs) < n_seeds:
@@ -497,7 +497,7 @@ def judge_part(part: str, task: str, runs: list[dict],
         word = (keeps(runs, gate_dip=task not in knife) if part == "keep"
                 else learns(runs))
     if word.ok is False and reference is not None and reference[0]:
-        return Part(True, f"{REFERENCE_MATCHED}{word.why}; {reference[1]}")
+        return Part(True, f"{word.why}; {reference[1]}", by_reference=True)
     return word
 
 
@@ -595,7 +595,8 @@ STUDY = cells.Study(NAME, "every RL learner keeps a perfect start and learns fro
                     result_file="competence.json")
 
 __all__ = ["DIP_NOT_GATED", "KEEP_TASKS", "KNIFE_EDGE_SHARE", "LEARNERS", "LEARN_TASKS", "NAME",
-           "ON_RECORD", "Part", "UNMATCHED", "VARIANTS", "algorithm", "judge_starts", "mixture_start",
+           "ON_RECORD", "Part", "UNMATCHED", "VARIANTS", "algorithm", "judge_starts",
+           "mixture_start",
            "STEP_SCALE", "STUDY", "aggregate", "budget_seeds", "cells_at", "competence", "gate",
            "judge_part", "part_seeds", "so_far",
            "keeps", "knife_edge", "learns", "matches_reference", "reference_records",
