@@ -222,8 +222,9 @@ display(Markdown("\n".join(
 _cost = []
 for _study in (_bench.STUDY, _ablations.STUDY, _modes.STUDY):
     _p = _sweep.plan(_study, _lesson)
-    _cost.append(f"`{_study.name}`: {len(_p['grid'])} cells, {len(_p['todo'])} still to run, "
-                 f"about {_p['cpu_seconds'] / 3600:.1f} CPU-hours left"
+    _cost.append(f"`{_study.name}`: {len(_p['grid'])} cells, "
+                 + (f"{len(_p['todo'])} still to run, about {_p['cpu_seconds'] / 3600:.1f} "
+                    f"CPU-hours left" if _p["todo"] else "complete")
                  + (f" (and {_p['unknown']} cells never measured)" if _p["unknown"] else ""))
 _ledger = [r for r in _sweep.ledger(_lesson) if not r["superseded"]]
 _final_done = sum(r["cpu_done"] for r in _ledger) / 3600
@@ -232,10 +233,13 @@ display(Markdown(
     "The grids rerun under the gate at the lesson budget, priced by the cells measured so "
     "far (`dc-lesson sweep STUDY --dry-run`): " + "; ".join(_cost) + f". The book's whole "
     f"final grid (`dc-lesson sweep all --dry-run`, without the first grids these supersede) "
-    f"has taken {_final_done:.1f} CPU-hours and needs about {_final_left:.1f} more by that "
-    f"estimate, {_final_done + _final_left:.0f} in all, against the 60 the book allows itself "
-    f"on this machine; the estimate prices a row not yet measured at its learner's seconds "
-    f"per interaction on shorter runs, whose fixed costs weigh more, so it can err high. "
+    + (f"has taken {_final_done:.1f} CPU-hours and needs about {_final_left:.1f} more by that "
+       f"estimate, {_final_done + _final_left:.0f} in all, against the 60 the book allows "
+       f"itself on this machine; the estimate prices a row not yet measured at its learner's "
+       f"seconds per interaction on shorter runs, whose fixed costs weigh more, so it can err "
+       f"high. " if _final_left else
+       f"is complete: it took {_final_done:.1f} CPU-hours, against the 60 the book allows "
+       f"itself on this machine. ")
     + ("The trades that keep it there" if _final_done + _final_left <= 60 else
        "By this estimate it is over; the cells still to run will say by how much. The trades "
        "made to bring it down")
