@@ -248,10 +248,15 @@ print("replay identical:", np.array_equal(obs, traj.observations)
 #   "stay tall and upright" term (`planner.PLANNING_REWARDS`: the walk reward is almost zero
 #   whenever the head is low, so a falling planner sees no way back up) and is judged on the
 #   task's own reward. It meets the floor, but it is no Markov policy (its action depends on
-#   random plans, not only on the state), so BC cannot clone it (the floor table below). Its
-#   SAC run, with a fallen humanoid ending the training episode, stayed far below the floor
-#   within the steps one session affords (the curves below), so the humanoid has no
-#   imitable expert yet.
+#   random plans, not only on the state), so BC cannot clone it (the floor table below).
+#   Its first SAC run ended each training episode when the head dropped below 0.9 m (Gym's
+#   fallen humanoid), and stayed at a return of about 5 in 500k steps. The reason is in the
+#   planner's demonstrations: dm_control drops the humanoid from a random pose, and its head
+#   passes 0.9 m within about 17 steps in 22 of 25 of them; the planner then gets up. So
+#   that run ended almost every episode before there was anything to learn. The run under
+#   way has no termination, and draws half of every minibatch from the planner's 25
+#   demonstrations (RLPD's symmetric sampling; `SACConfig.demo_fraction`); until it
+#   reaches the floor the humanoid has no imitable expert.
 #
 # The table lists, for each task, the expert, its return over 50 episodes, the random
 # policy's, and the mode shares (tasks without demonstrations yet say so).
@@ -398,7 +403,8 @@ plt.show()
 display(Markdown("; ".join(
     f"{t}: SAC's best evaluation return {c['eval_return'].max():.0f} (floor "
     f"{floors.FLOORS[t]:.0f}) in {c['steps'][-1]:,} steps"
-    + ("" if c["done"] else f" of the recipe's {c['total_steps']:,} (the run was cut there)")
+    + ("" if c["done"] else f" of the recipe's {c['total_steps']:,} (the run is under way: "
+       f"dc-lesson expert train --task {t} resumes it)")
     for t, c in ((t, network.sac_curve(t)) for t in sac_tasks)) + "."))
 
 # %% [markdown]

@@ -11,7 +11,7 @@ import pytest
 import torch
 
 from dc_lesson import cli, data
-from dc_lesson.experts import VARIANTS, load_expert, network, sac, trained
+from dc_lesson.experts import DEFAULT_EXPERT, VARIANTS, load_expert, network, sac, trained
 from dc_lesson.nn.policies import GaussianPolicy
 
 TINY = dataclasses.replace(network.DISTIL, rounds=2, episodes_per_round=2, epochs=15,
@@ -116,7 +116,14 @@ def test_the_recipes_are_recorded_with_the_expert():
         if not meta_path.exists():
             continue
         meta = json.loads(meta_path.read_text())
-        assert meta["sac_config"] == sac.json_config(network.SAC_RECIPES[task])
+        recipe = sac.json_config(network.SAC_RECIPES[task])
+        if meta["sac_config"] != recipe:
+            # a student distilled from a former recipe (the humanoid's 500k-step run) may stay
+            # only as a variant, while the current recipe's run is under way and recorded
+            assert DEFAULT_EXPERT[task] != "network", task
+            sac_meta = json.loads(network.paths(task)["sac_meta"].read_text())
+            assert sac_meta["config"] == recipe and not sac_meta["done"], task
+            continue
         assert meta["distil_config"] == json.loads(json.dumps(
             dataclasses.asdict(network.DISTIL)))
         assert meta["learning_curve"] and meta["dagger"]

@@ -13,9 +13,10 @@ from dc_lesson.experts import sac
 EPS32 = float(np.finfo(np.float32).eps)
 
 
-def test_twin_q_is_two_independent_mlps():
+@pytest.mark.parametrize("layer_norm", [False, True])
+def test_twin_q_is_two_independent_mlps(layer_norm):
     torch.manual_seed(0)
-    q = sac.TwinQ(5, (7, 3))
+    q = sac.TwinQ(5, (7, 3), layer_norm=layer_norm)
     obs, act = torch.randn(11, 3), torch.randn(11, 2)
     out = q(obs, act)
     assert out.shape == (2, 11)
@@ -25,6 +26,9 @@ def test_twin_q_is_two_independent_mlps():
         for i, (w, b) in enumerate(zip(q.weights, q.biases)):
             h = h @ w[k] + b[k]
             if i < len(q.weights) - 1:
+                if layer_norm:   # each row's units to mean 0, variance 1 (biased, eps 1e-5)
+                    h = (h - h.mean(-1, keepdim=True)) / torch.sqrt(
+                        h.var(-1, unbiased=False, keepdim=True) + 1e-5)
                 h = torch.relu(h)
         # float32 rounding of a sum of a few terms: tolerance from eps, not from one machine
         tol = 16 * EPS32 * (1 + h.abs().max().item())
@@ -79,7 +83,8 @@ def test_a_checkpoint_of_another_config_is_refused(tmp_path):
 
 @pytest.mark.parametrize("field, value", [("total_steps", 0), ("batch_size", True),
                                           ("q_lr", float("inf")), ("gamma", 1.0),
-                                          ("hidden", (0,)), ("learning_starts", 10)])
+                                          ("hidden", (0,)), ("learning_starts", 10),
+                                          ("demo_fraction", -0.1), ("critic_layer_norm", 1)])
 def test_bad_settings_are_refused_at_construction(field, value):
     with pytest.raises(ValueError, match=field):
         sac.SACConfig(**{field: value})
@@ -105,3 +110,69 @@ def test_a_training_only_termination_ends_episodes_and_cuts_the_bootstrap(tmp_pa
     assert done.sum() >= 5 and np.array_equal(done == 1, fell)
     with pytest.raises(ValueError, match="terminate must be one of"):
         sac.SACConfig(terminate="walker-fall")
+
+
+def _demos(reward: float, n: int = 2):
+    """Cartpole episodes of a zero-action policy whose every step pays ``reward``."""
+    from dc_lesson.data import rollout
+    trajs = rollout.collect("cartpole", lambda obs: np.zeros((len(obs), 1)), n, seed=5,
+                            progress=False)
+    return [dataclasses.replace(t, rewards=np.full(len(t), reward)) for t in trajs]
+
+
+def test_the_demonstration_buffer_holds_each_episode_s_transitions_in_order():
+    demos = _demos(1.0)
+    buf = sac.demo_buffer("cartpole", demos)
+    T = len(demos[0])
+    assert len(buf["obs"]) == len(buf["next_obs"]) == 2 * T and not buf["done"].any()
+    np.testing.assert_array_equal(buf["next_obs"][:T - 1], buf["obs"][1:T])   # within one
+    np.testing.assert_array_equal(buf["obs"][T], demos[1].observations[0])    # next episode
+    np.testing.assert_array_equal(buf["act"][T:], demos[1].actions)
+    with pytest.raises(ValueError, match="must be hopper trajectories"):
+        sac.demo_buffer("hopper", demos)
+
+
+DEMO = dataclasses.replace(TINY, learning_starts=1000, demo_fraction=0.5)
+MIN_Q_GAP = 2.0   # value units; one step of the richer demonstrations pays 10
+
+
+def test_the_critic_learns_the_demonstrations_rewards(tmp_path):
+    """Two runs alike but for what the demonstrations pay (0 or 10 per step): the critic's
+    value at the demonstrated pairs must tell them apart by several units. A loop that never
+    samples the demonstrations (or drops their rewards) leaves the two critics together."""
+    from dc_lesson.nn.checkpoint import load_checked
+    torch.set_num_threads(1)
+    q_mean = {}
+    for reward in (0.0, 10.0):
+        demos = _demos(reward)
+        sac.train("cartpole", DEMO, checkpoint=tmp_path / f"{reward}.sac", demonstrations=demos)
+        st = load_checked(tmp_path / f"{reward}.sac", sac.CHECKPOINT_FORMAT,
+                          sac.CHECKPOINT_VERSION, "x")
+        qf = sac.TwinQ(5 + 1, DEMO.hidden)
+        qf.load_state_dict(st["qf"])
+        buf = sac.demo_buffer("cartpole", demos)
+        with torch.no_grad():
+            q = qf(torch.from_numpy(buf["obs"]), torch.from_numpy(buf["act"]))
+        q_mean[reward] = q.mean().item()
+    assert q_mean[10.0] - q_mean[0.0] > MIN_Q_GAP, q_mean
+
+
+def test_demonstrations_are_required_exactly_with_a_demo_fraction_and_kept_on_resume(tmp_path):
+    with pytest.raises(ValueError, match="demo_fraction"):
+        sac.train("cartpole", DEMO)
+    with pytest.raises(ValueError, match="demo_fraction"):
+        sac.train("cartpole", TINY, demonstrations=_demos(1.0))
+    with pytest.raises(ValueError, match="demo_fraction"):
+        sac.SACConfig(demo_fraction=1.0)
+    torch.set_num_threads(1)
+    whole = sac.train("cartpole", DEMO, demonstrations=_demos(1.0))
+    ckpt = tmp_path / "d.sac"
+    sac.train("cartpole", DEMO, checkpoint=ckpt, stop_after_seconds=0,
+              demonstrations=_demos(1.0))
+    with pytest.raises(ValueError, match="other demonstrations"):
+        sac.train("cartpole", DEMO, checkpoint=ckpt, demonstrations=_demos(2.0))
+    rest = sac.train("cartpole", DEMO, checkpoint=ckpt, demonstrations=_demos(1.0))
+    assert rest["done"]
+    for (k, p), (_, q) in zip(whole["actor"].state_dict().items(),
+                              rest["actor"].state_dict().items()):
+        assert torch.equal(p, q), k

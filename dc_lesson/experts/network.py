@@ -21,8 +21,9 @@ the learner's own class; so are these, made in two stages:
    ``TASK.pt`` (+ ``.json`` with both stages' recipes and curves).
 
 The student is the task's expert where it meets the floor (``experts.DEFAULT_EXPERT``: walker,
-ant); the humanoid's SAC run did not (its curve is in ``humanoid-sac.json``), so there the
-planner stays the expert and the student is the variant ``"network"``. The expert acts with
+ant); the humanoid's first SAC run did not (its curve is in ``humanoid.json``; the current
+recipe's run, with the planner's demonstrations, is recorded in ``humanoid-sac.json`` as it
+goes), so there the planner stays the expert and the student is the variant ``"network"``. The expert acts with
 the distilled policy's mean action.
 """
 
@@ -46,15 +47,24 @@ EXPERTS_DIR = _storage.DATA / "experts"
 ACTOR_FORMAT, ACTOR_VERSION = "dc_lesson.sac_actor", 1
 
 _SMALL = dict(hidden=(64, 64), log_every=5_000, checkpoint_every=25_000, eval_episodes=2)
+# The expert whose demonstrations a recipe with ``demo_fraction`` > 0 samples from.
+SAC_DEMOS: dict[str, str] = {"humanoid": "planner"}
+
 SAC_RECIPES: dict[str, SACConfig] = {
     "walker": SACConfig(**_SMALL, total_steps=200_000),
     "ant": SACConfig(**_SMALL, total_steps=300_000),
-    # Gym's fallen-humanoid termination, for training only (tasks.humanoid.fell): without it
-    # most of the buffer is a humanoid lying on the floor, where every action earns nothing.
-    # 500k steps (about an hour at 130 steps/s): what one session affords, since the replay
-    # buffer (hundreds of MB) is not committed and so cannot carry a run over to the next.
-    "humanoid": SACConfig(**{**_SMALL, "hidden": (128, 128)}, total_steps=500_000,
-                          terminate="humanoid-fall"),
+    # The humanoid (measured on the planner's 25 demonstrations): dm_control starts it in a
+    # random pose, and its head drops below tasks.humanoid.FALLEN_HEAD within about 17 steps
+    # in 22 of 25 episodes even under the planner, which then gets up and walks (mean return
+    # 631). So Gym's fallen-humanoid termination (the 500k-step run of round 3: eval return
+    # 1-11 of 1000: its curve stays in data/experts/humanoid.json) ended nearly every training
+    # episode before the agent could learn to rise. No termination, then, and the planner's
+    # demonstrations (getting up and walking, with the task's rewards) for half of every
+    # minibatch (``demo_fraction``, RLPD); the actor still acts from its own states only.
+    # 3M steps: about 6.5 hours at 130 steps/s, run in chunks (``--hours``) on a machine that
+    # keeps data/experts/checkpoints/ between sessions.
+    "humanoid": SACConfig(**{**_SMALL, "hidden": (128, 128)}, total_steps=3_000_000,
+                          demo_fraction=0.5),
 }
 
 
@@ -92,6 +102,20 @@ def _write_sac_meta(task, cfg, log, done, command, directory=None):
     return meta
 
 
+def sac_demonstrations(task: str):
+    """The demonstrations the task's SAC recipe samples from (``SAC_DEMOS``), or None.
+
+    Named by their expert, so the set stays the same when the task's default expert (and with
+    it the unnamed demonstration file) changes."""
+    kind = SAC_DEMOS.get(task)
+    if kind is None or SAC_RECIPES[task].demo_fraction == 0:
+        return None
+    from dc_lesson.data import load_demos
+    from dc_lesson.experts import DEFAULT_EXPERT
+    variant = None if DEFAULT_EXPERT.get(task) == kind else kind
+    return load_demos(task, variant=variant).trajectories
+
+
 def train_sac(task: str, hours: float | None = None, command: str = "", directory=None,
               progress=print) -> dict:
     """Runs (or resumes) the task's SAC recipe; returns its metadata with ``done``.
@@ -111,7 +135,8 @@ def train_sac(task: str, hours: float | None = None, command: str = "", director
                      f"{row['steps_per_second']:.0f} steps/s")
 
     out = sac_train(task, cfg, checkpoint=p["checkpoint"], progress=show,
-                    stop_after_seconds=None if hours is None else 3600 * hours)
+                    stop_after_seconds=None if hours is None else 3600 * hours,
+                    demonstrations=sac_demonstrations(task))
     meta = _write_sac_meta(task, cfg, out["log"], out["done"], command, directory)
     if out["done"]:
         atomic_torch_save({"format": ACTOR_FORMAT, "version": ACTOR_VERSION,

@@ -18,6 +18,11 @@ One readable loop, CleanRL's ``sac_continuous_action.py`` with every detail name
   only a *training-only* termination (``terminate``, a name in ``tasks.TERMINATIONS``, as
   PPO's ``terminate``: Gym's fallen humanoid) ends an episode early, and its last transition
   is terminal (no bootstrap). The tasks themselves never end early;
+* optional expert demonstrations (``demo_fraction`` > 0, RLPD's symmetric sampling, Ball et
+  al. 2023): their transitions (r from the task, never terminal) fill a second buffer, and that
+  share of every minibatch is drawn from it, the rest from the agent's own buffer. The
+  humanoid's recipe uses the planner's: SAC alone never saw a humanoid get up (chapter notes
+  in :mod:`dc_lesson.experts.network`);
 * ``learning_starts`` uniformly random actions first; then one gradient step per environment
   step; the actor and alpha every ``policy_frequency`` steps, that many times (CleanRL's
   delayed update).
@@ -72,6 +77,8 @@ class SACConfig:
     checkpoint_every: int = 25_000
     eval_episodes: int = 2
     terminate: str | None = None     # a training-only termination (tasks.TERMINATIONS)
+    demo_fraction: float = 0.0       # share of each minibatch from demonstrations (RLPD: 0.5)
+    critic_layer_norm: bool = False  # LayerNorm in the Q networks' hidden layers (RLPD)
     seed: int = 0
 
     def __post_init__(self):
@@ -88,6 +95,13 @@ class SACConfig:
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
                 raise ValueError(f"SACConfig.{name} must be a positive finite number, got {v!r}")
+        if not (isinstance(self.demo_fraction, (int, float)) and not
+                isinstance(self.demo_fraction, bool) and 0 <= self.demo_fraction < 1):
+            raise ValueError(f"SACConfig.demo_fraction must be a number in [0, 1), got "
+                             f"{self.demo_fraction!r}")
+        if not isinstance(self.critic_layer_norm, bool):
+            raise ValueError(f"SACConfig.critic_layer_norm must be True or False, got "
+                             f"{self.critic_layer_norm!r}")
         if not 0 < self.gamma < 1 or self.tau > 1:
             raise ValueError("SACConfig needs 0 < gamma < 1 and 0 < tau <= 1")
         if self.terminate is not None and self.terminate not in _tasks.TERMINATIONS:
@@ -139,10 +153,15 @@ class Actor(nn.Module):
 
 
 class TwinQ(nn.Module):
-    """Two Q networks as one: weights (2, in, out), one batched matmul per layer."""
+    """Two Q networks as one: weights (2, in, out), one batched matmul per layer.
 
-    def __init__(self, in_dim, hidden, n=2):
+    ``layer_norm``: each hidden layer's pre-activations normalised over its units (no learnt
+    scale or shift), as RLPD's critics (Ball et al. 2023), which keeps Q from extrapolating
+    far above the data at actions no transition holds."""
+
+    def __init__(self, in_dim, hidden, n=2, layer_norm: bool = False):
         super().__init__()
+        self.layer_norm = bool(layer_norm)
         dims = [in_dim, *hidden, 1]
         self.weights = nn.ParameterList()
         self.biases = nn.ParameterList()
@@ -161,6 +180,8 @@ class TwinQ(nn.Module):
         for i, (w, b) in enumerate(zip(self.weights, self.biases)):
             x = torch.baddbmm(b, x, w)
             if i < len(self.weights) - 1:
+                if self.layer_norm:
+                    x = F.layer_norm(x, x.shape[-1:])
                 x = F.relu(x)
         return x.squeeze(-1)
 
@@ -183,17 +204,47 @@ def _alpha_of(cfg, log_alpha):
     return log_alpha.exp().item() if cfg.autotune else cfg.alpha
 
 
+def demo_buffer(task: str, trajectories) -> dict[str, np.ndarray]:
+    """The transitions of ``trajectories`` (whole episodes of ``task``) as a replay buffer.
+
+    Every transition bootstraps (``done`` 0): the demonstrations end at the time limit."""
+    trajectories = list(trajectories)
+    if not trajectories or any(getattr(t, "task", None) != task for t in trajectories):
+        raise ValueError(f"SAC's demonstrations must be {task} trajectories (at least one), "
+                         f"e.g. dc_lesson.data.load_demos({task!r}).trajectories")
+    cat = lambda f: np.concatenate([f(t) for t in trajectories]).astype(np.float32)  # noqa: E731
+    obs = cat(lambda t: t.observations[:-1])
+    return {"obs": obs, "act": cat(lambda t: t.actions), "rew": cat(lambda t: t.rewards),
+            "next_obs": cat(lambda t: t.observations[1:]), "done": np.zeros(len(obs), np.float32)}
+
+
+def _digest(buffer) -> str:
+    import hashlib
+    h = hashlib.sha256()
+    for k in sorted(buffer):
+        h.update(np.ascontiguousarray(buffer[k]).tobytes())
+    return h.hexdigest()
+
+
 def train(task: str, config: SACConfig = SACConfig(), checkpoint=None, progress=None,
-          stop_after_seconds: float | None = None) -> dict:
+          stop_after_seconds: float | None = None, demonstrations=None) -> dict:
     """Trains SAC on ``task``'s own reward; returns ``{"actor", "log", "done", ...}``.
 
     ``checkpoint``: a path; resumed from when it exists (same config required), written every
     ``checkpoint_every`` steps (always at an episode's end, so the environment restarts from a
     seed and the resumed run is the uninterrupted one, bit for bit at one thread).
     ``stop_after_seconds``: stop at the first checkpoint after this much wall time (a chunk).
-    ``progress``: a callable given each log row.
+    ``progress``: a callable given each log row. ``demonstrations``: the trajectories that
+    ``demo_fraction`` samples from (required exactly when it is above 0; a resumed run must be
+    given the same ones).
     """
     cfg = config
+    if (cfg.demo_fraction > 0) != (demonstrations is not None):
+        raise ValueError("SAC takes demonstrations exactly when SACConfig.demo_fraction > 0 "
+                         f"(it is {cfg.demo_fraction}): pass both or neither")
+    demo = demo_buffer(task, demonstrations) if demonstrations is not None else None
+    demo_sha = _digest(demo) if demo is not None else None
+    n_demo = int(round(cfg.batch_size * cfg.demo_fraction)) if demo is not None else 0
     spec = _tasks.SPECS[_tasks.check_name(task)]
     if cfg.checkpoint_every % spec.horizon or cfg.log_every % spec.horizon:
         raise ValueError(f"checkpoint_every and log_every must be multiples of {task}'s "
@@ -201,8 +252,8 @@ def train(task: str, config: SACConfig = SACConfig(), checkpoint=None, progress=
     obs_dim, act_dim = spec.obs_dim, spec.act_dim
     torch.manual_seed(cfg.seed)
     actor = Actor(obs_dim, act_dim, cfg.hidden, cfg.log_std_min, cfg.log_std_max)
-    qf = TwinQ(obs_dim + act_dim, cfg.hidden)
-    qf_target = TwinQ(obs_dim + act_dim, cfg.hidden)
+    qf = TwinQ(obs_dim + act_dim, cfg.hidden, layer_norm=cfg.critic_layer_norm)
+    qf_target = TwinQ(obs_dim + act_dim, cfg.hidden, layer_norm=cfg.critic_layer_norm)
     qf_target.load_state_dict(qf.state_dict())
     log_alpha = torch.zeros(1, requires_grad=True)
     target_entropy = -float(act_dim)
@@ -224,6 +275,9 @@ def train(task: str, config: SACConfig = SACConfig(), checkpoint=None, progress=
                 {**json_config(SACConfig()), **st["config"]} != json_config(cfg):
             raise ValueError(f"the SAC checkpoint {ckpt} was made with another configuration; "
                              f"delete it to train from the start")
+        if st.get("demos_sha256") != demo_sha:
+            raise ValueError(f"the SAC checkpoint {ckpt} was made with other demonstrations; "
+                             f"pass the same ones, or {fix}")
         try:   # a file that passed its checksum but lacks a part (a bare KeyError names none)
             actor.load_state_dict(st["actor"]); qf.load_state_dict(st["qf"])
             qf_target.load_state_dict(st["qf_target"])
@@ -251,7 +305,7 @@ def train(task: str, config: SACConfig = SACConfig(), checkpoint=None, progress=
             "buffer": {k: torch.from_numpy(v[:size].copy()) for k, v in buf.items()},
             "size": size, "ptr": ptr, "step": step, "episode": episode,
             "np_rng": _json.dumps(rng.bit_generator.state), "torch_gen": gen.get_state(),
-            "log": _json.dumps(log), "seconds": seconds}, ckpt)
+            "log": _json.dumps(log), "seconds": seconds, "demos_sha256": demo_sha}, ckpt)
 
     env = _tasks.make(task)
     t_chunk = time.perf_counter()
@@ -278,8 +332,11 @@ def train(task: str, config: SACConfig = SACConfig(), checkpoint=None, progress=
             ptr, size = (ptr + 1) % n, min(size + 1, n)
             obs, ep_ret, step = next_obs, ep_ret + r, step + 1
             if step > cfg.learning_starts:
-                idx = rng.integers(0, size, cfg.batch_size)
+                idx = rng.integers(0, size, cfg.batch_size - n_demo)
                 b = {k: torch.from_numpy(v[idx]) for k, v in buf.items()}
+                if n_demo:
+                    d_idx = rng.integers(0, len(demo["obs"]), n_demo)
+                    b = {k: torch.cat([v, torch.from_numpy(demo[k][d_idx])]) for k, v in b.items()}
                 alpha = _alpha_of(cfg, log_alpha)
                 # critic: soft Bellman target from the twin targets' minimum
                 with torch.no_grad():
