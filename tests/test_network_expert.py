@@ -127,3 +127,23 @@ def test_the_recipes_are_recorded_with_the_expert():
         assert meta["distil_config"] == json.loads(json.dumps(
             dataclasses.asdict(network.DISTIL)))
         assert meta["learning_curve"] and meta["dagger"]
+
+
+def test_sac_demonstrations_are_named_by_their_expert(monkeypatch):
+    """The humanoid's SAC samples the planner's demonstrations: today the unnamed set (the
+    planner is the default expert), once the network is the default the ``planner`` variant,
+    never the network's own."""
+    from dc_lesson import experts
+    from dc_lesson.data.store import DemoError
+    demos = network.sac_demonstrations("humanoid")
+    assert len(demos) == 25 and all(t.task == "humanoid" for t in demos)
+    assert data.manifest_entry("humanoid")["expert"]["kind"] == "planner"
+    monkeypatch.setitem(experts.DEFAULT_EXPERT, "humanoid", "network")
+    try:
+        again = network.sac_demonstrations("humanoid")
+    except DemoError as e:   # the planner's set is not yet stored under its variant
+        assert "humanoid-planner" in str(e)
+    else:
+        assert data.manifest_entry("humanoid", variant="planner")["expert"]["kind"] == "planner"
+        assert len(again) == 25
+    assert network.sac_demonstrations("walker") is None   # no demo_fraction in its recipe
