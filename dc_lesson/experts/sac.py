@@ -21,8 +21,11 @@ One readable loop, CleanRL's ``sac_continuous_action.py`` with every detail name
 * optional expert demonstrations (``demo_fraction`` > 0, RLPD's symmetric sampling, Ball et
   al. 2023): their transitions (r from the task, never terminal) fill a second buffer, and that
   share of every minibatch is drawn from it, the rest from the agent's own buffer. The
-  humanoid's recipe uses the planner's: SAC alone never saw a humanoid get up (chapter notes
-  in :mod:`dc_lesson.experts.network`);
+  humanoid's recipe uses the planner's, for SAC alone never saw a humanoid get up (the
+  measurements are with the recipe, :data:`dc_lesson.experts.network.SAC_RECIPES`);
+* optional LayerNorm in the critics' hidden layers (``critic_layer_norm``, RLPD's other
+  ingredient), which keeps Q near the data's values when demonstrations sit beside the
+  agent's own transitions;
 * ``learning_starts`` uniformly random actions first; then one gradient step per environment
   step; the actor and alpha every ``policy_frequency`` steps, that many times (CleanRL's
   delayed update).
@@ -41,6 +44,7 @@ run cut by a session's end resumes exactly where it stopped. The finished actor 
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 import json as _json
 import math
 import pathlib
@@ -219,7 +223,6 @@ def demo_buffer(task: str, trajectories) -> dict[str, np.ndarray]:
 
 
 def _digest(buffer) -> str:
-    import hashlib
     h = hashlib.sha256()
     for k in sorted(buffer):
         h.update(np.ascontiguousarray(buffer[k]).tobytes())
