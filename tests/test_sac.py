@@ -84,7 +84,8 @@ def test_a_checkpoint_of_another_config_is_refused(tmp_path):
 @pytest.mark.parametrize("field, value", [("total_steps", 0), ("batch_size", True),
                                           ("q_lr", float("inf")), ("gamma", 1.0),
                                           ("hidden", (0,)), ("learning_starts", 10),
-                                          ("demo_fraction", -0.1), ("critic_layer_norm", 1)])
+                                          ("demo_fraction", -0.1), ("critic_layer_norm", 1),
+                                          ("demo_starts", 1.5)])
 def test_bad_settings_are_refused_at_construction(field, value):
     with pytest.raises(ValueError, match=field):
         sac.SACConfig(**{field: value})
@@ -176,3 +177,39 @@ def test_demonstrations_are_required_exactly_with_a_demo_fraction_and_kept_on_re
     for (k, p), (_, q) in zip(whole["actor"].state_dict().items(),
                               rest["actor"].state_dict().items()):
         assert torch.equal(p, q), k
+
+
+def test_demonstrated_states_replay_to_the_demonstrated_observations():
+    from dc_lesson import tasks
+    demos = _demos(1.0)
+    states = sac.demo_states("cartpole", demos)
+    T = len(demos[0])
+    assert states.shape[0] == 2 * T
+    env = tasks.make("cartpole")
+    for i, k in ((0, 0), (0, T - 1), (1, 123)):
+        env.reset(seed=0)
+        obs = env.set_state(states[i * T + k])
+        np.testing.assert_allclose(obs, demos[i].observations[k], rtol=0, atol=1e-9)
+
+
+def test_demo_starts_begin_training_episodes_at_demonstrated_states(tmp_path):
+    """With ``demo_starts`` 1 each training episode's first observation is a demonstrated one;
+    with 0 (the default) none is: the task's own starts never coincide with them."""
+    from dc_lesson import tasks
+    from dc_lesson.nn.checkpoint import load_checked
+    torch.set_num_threads(1)
+    demos = _demos(1.0)
+    shown = np.concatenate([t.observations[:-1] for t in demos])
+    firsts = {}
+    for share in (0.0, 1.0):
+        cfg = dataclasses.replace(DEMO, demo_starts=share)
+        sac.train("cartpole", cfg, checkpoint=tmp_path / f"{share}.sac", demonstrations=demos)
+        st = load_checked(tmp_path / f"{share}.sac", sac.CHECKPOINT_FORMAT,
+                          sac.CHECKPOINT_VERSION, "x")
+        obs = st["buffer"]["obs"].numpy()
+        firsts[share] = obs[::tasks.spec("cartpole").horizon]
+    for share, expect in ((0.0, False), (1.0, True)):
+        hits = [bool(np.any(np.all(np.abs(shown - o) < 1e-9, axis=1))) for o in firsts[share]]
+        assert hits == [expect] * len(hits), (share, hits)
+    with pytest.raises(ValueError, match="demo_starts"):
+        sac.train("cartpole", dataclasses.replace(TINY, demo_starts=0.5))

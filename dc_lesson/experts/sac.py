@@ -26,6 +26,10 @@ One readable loop, CleanRL's ``sac_continuous_action.py`` with every detail name
 * optional LayerNorm in the critics' hidden layers (``critic_layer_norm``, RLPD's other
   ingredient), which keeps Q near the data's values when demonstrations sit beside the
   agent's own transitions;
+* optional starts from demonstrated states (``demo_starts``: that share of training episodes
+  begins at a state drawn uniformly from the demonstrations, recovered by replaying their
+  actions from their initial states: reference state initialisation, Peng et al. 2018,
+  DeepMimic). The evaluations always start from the task's own initial states;
 * ``learning_starts`` uniformly random actions first; then one gradient step per environment
   step; the actor and alpha every ``policy_frequency`` steps, that many times (CleanRL's
   delayed update).
@@ -83,6 +87,7 @@ class SACConfig:
     terminate: str | None = None     # a training-only termination (tasks.TERMINATIONS)
     demo_fraction: float = 0.0       # share of each minibatch from demonstrations (RLPD: 0.5)
     critic_layer_norm: bool = False  # LayerNorm in the Q networks' hidden layers (RLPD)
+    demo_starts: float = 0.0         # share of training episodes begun at a demonstrated state
     seed: int = 0
 
     def __post_init__(self):
@@ -103,6 +108,10 @@ class SACConfig:
                 isinstance(self.demo_fraction, bool) and 0 <= self.demo_fraction < 1):
             raise ValueError(f"SACConfig.demo_fraction must be a number in [0, 1), got "
                              f"{self.demo_fraction!r}")
+        if not (isinstance(self.demo_starts, (int, float)) and not
+                isinstance(self.demo_starts, bool) and 0 <= self.demo_starts <= 1):
+            raise ValueError(f"SACConfig.demo_starts must be a number in [0, 1], got "
+                             f"{self.demo_starts!r}")
         if not isinstance(self.critic_layer_norm, bool):
             raise ValueError(f"SACConfig.critic_layer_norm must be True or False, got "
                              f"{self.critic_layer_norm!r}")
@@ -222,6 +231,20 @@ def demo_buffer(task: str, trajectories) -> dict[str, np.ndarray]:
             "next_obs": cat(lambda t: t.observations[1:]), "done": np.zeros(len(obs), np.float32)}
 
 
+def demo_states(task: str, trajectories) -> np.ndarray:
+    """The simulator states (``TaskEnv.get_state``) before each action of ``trajectories``,
+    by replaying the actions from each one's initial state: (sum of lengths, state size)."""
+    env = _tasks.make(task)
+    out = []
+    for t in trajectories:
+        env.reset(seed=t.seed)
+        env.set_state(t.initial_state)
+        for a in t.actions:
+            out.append(env.get_state())
+            env.step(a)
+    return np.stack(out)
+
+
 def _digest(buffer) -> str:
     h = hashlib.sha256()
     for k in sorted(buffer):
@@ -242,12 +265,14 @@ def train(task: str, config: SACConfig = SACConfig(), checkpoint=None, progress=
     given the same ones).
     """
     cfg = config
-    if (cfg.demo_fraction > 0) != (demonstrations is not None):
-        raise ValueError("SAC takes demonstrations exactly when SACConfig.demo_fraction > 0 "
-                         f"(it is {cfg.demo_fraction}): pass both or neither")
+    if (cfg.demo_fraction > 0 or cfg.demo_starts > 0) != (demonstrations is not None):
+        raise ValueError("SAC takes demonstrations exactly when SACConfig.demo_fraction or "
+                         f"demo_starts is above 0 (they are {cfg.demo_fraction} and "
+                         f"{cfg.demo_starts}): pass both or neither")
     demo = demo_buffer(task, demonstrations) if demonstrations is not None else None
     demo_sha = _digest(demo) if demo is not None else None
-    n_demo = int(round(cfg.batch_size * cfg.demo_fraction)) if demo is not None else 0
+    n_demo = int(round(cfg.batch_size * cfg.demo_fraction))
+    starts = demo_states(task, demonstrations) if cfg.demo_starts > 0 else None
     spec = _tasks.SPECS[_tasks.check_name(task)]
     if cfg.checkpoint_every % spec.horizon or cfg.log_every % spec.horizon:
         raise ValueError(f"checkpoint_every and log_every must be multiples of {task}'s "
@@ -319,6 +344,8 @@ def train(task: str, config: SACConfig = SACConfig(), checkpoint=None, progress=
         first_step = step
         # one episode (the fixed horizon; a time limit, so every target bootstraps)
         obs = env.reset(seed=cfg.seed * 1_000_003 + episode)
+        if starts is not None and rng.random() < cfg.demo_starts:
+            obs = env.set_state(starts[rng.integers(len(starts))])
         ep_ret = 0.0
         for _ in range(spec.horizon):
             if step < cfg.learning_starts:
