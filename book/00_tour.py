@@ -254,10 +254,13 @@ print("replay identical:", np.array_equal(obs, traj.observations)
 #   planner's demonstrations: dm_control drops the humanoid from a random pose, and its head
 #   passes 0.9 m within about 17 steps in 22 of 25 of them; the planner then gets up. So
 #   that run ended almost every episode before there was anything to learn. The run under
-#   way has no termination, draws half of every minibatch from the planner's 25
-#   demonstrations and normalises its critics' hidden layers (RLPD, Ball et al. 2023:
-#   `SACConfig.demo_fraction`, `critic_layer_norm`; without the normalisation the critic's
-#   values diverged). Until it reaches the floor the humanoid has no imitable expert.
+#   way has no termination and begins half of its training episodes at a state of the
+#   planner's demonstrations (reference state initialisation, Peng et al. 2018:
+#   `SACConfig.demo_starts`), so it meets standing and walking states and tries its own
+#   actions there. Putting the planner's transitions in every minibatch instead (RLPD,
+#   `demo_fraction`) made the critic's values diverge at the demonstrated actions, which the
+#   agent never tries (the measurements are with the recipe, `experts.network`). Until the
+#   run reaches the floor the humanoid has no imitable expert.
 #
 # The table lists, for each task, the expert, its return over 50 episodes, the random
 # policy's, and the mode shares (tasks without demonstrations yet say so).

@@ -57,18 +57,22 @@ SAC_RECIPES: dict[str, SACConfig] = {
     # random pose, and its head drops below tasks.humanoid.FALLEN_HEAD within about 17 steps
     # in 22 of 25 episodes even under the planner, which then gets up and walks (mean return
     # 631). So Gym's fallen-humanoid termination (the 500k-step run of round 3: eval return
-    # 1-11 of 1000: its curve stays in data/experts/humanoid.json) ended nearly every training
-    # episode before the agent could learn to rise. No termination, then, and the planner's
-    # demonstrations (getting up and walking, with the task's rewards) for half of every
-    # minibatch (``demo_fraction``, RLPD); the actor still acts from its own states only.
-    # And RLPD's LayerNorm critics: without them the critic diverged (at 100k steps its mean
-    # Q at the demonstrated pairs was 2432, where the reward (at most 1 per step) and the
-    # entropy bonus at the policy's spread then (alpha 0.58, log-std -0.87) bound the soft
-    # value below about 800; with them, 95 at 75k).
+    # 1-11 of 1000: its curve stays in data/experts/humanoid.json) ended nearly every
+    # training episode before the agent could learn to rise. No termination, then; and half
+    # of the training episodes begin at a state of the planner's demonstrations
+    # (``demo_starts``: reference state initialisation), so the agent meets standing and
+    # walking states and tries its own actions there. Rejected by measurement (one seed each,
+    # session 15): the planner's transitions as half of every minibatch (RLPD,
+    # ``demo_fraction``) made the critic diverge at the demonstrated pairs, whose actions the
+    # agent never tries: without LayerNorm, mean Q 2432 at 100k steps where the reward and
+    # the entropy bonus then bound the soft value below about 800; with LayerNorm, 104 rising
+    # to 193 by 275k (the demonstrations' discounted return-to-go: 59), TD loss 17 -> 121;
+    # with the starts as well, TD loss 2.6 -> 79 by 290k. With the starts alone the TD loss
+    # stayed at 0.02-0.05. LayerNorm critics kept (RLPD's; that run had them).
     # 3M steps: about 8 hours at 100 steps/s, run in chunks (``--hours``) on a machine that
     # keeps data/experts/checkpoints/ between sessions.
     "humanoid": SACConfig(**{**_SMALL, "hidden": (128, 128)}, total_steps=3_000_000,
-                          demo_fraction=0.5, critic_layer_norm=True),
+                          demo_starts=0.5, critic_layer_norm=True),
 }
 
 
@@ -111,8 +115,8 @@ def sac_demonstrations(task: str):
 
     Named by their expert, so the set stays the same when the task's default expert (and with
     it the unnamed demonstration file) changes."""
-    kind = SAC_DEMOS.get(task)
-    if kind is None or SAC_RECIPES[task].demo_fraction == 0:
+    kind, cfg = SAC_DEMOS.get(task), SAC_RECIPES[task]
+    if kind is None or (cfg.demo_fraction == 0 and cfg.demo_starts == 0):
         return None
     from dc_lesson.data import load_demos
     from dc_lesson.experts import DEFAULT_EXPERT

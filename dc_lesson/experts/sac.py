@@ -20,16 +20,17 @@ One readable loop, CleanRL's ``sac_continuous_action.py`` with every detail name
   is terminal (no bootstrap). The tasks themselves never end early;
 * optional expert demonstrations (``demo_fraction`` > 0, RLPD's symmetric sampling, Ball et
   al. 2023): their transitions (r from the task, never terminal) fill a second buffer, and that
-  share of every minibatch is drawn from it, the rest from the agent's own buffer. The
-  humanoid's recipe uses the planner's, for SAC alone never saw a humanoid get up (the
-  measurements are with the recipe, :data:`dc_lesson.experts.network.SAC_RECIPES`);
+  share of every minibatch is drawn from it, the rest from the agent's own buffer (tried on
+  the humanoid and rejected: the measurements are with its recipe,
+  :data:`dc_lesson.experts.network.SAC_RECIPES`);
 * optional LayerNorm in the critics' hidden layers (``critic_layer_norm``, RLPD's other
   ingredient), which keeps Q near the data's values when demonstrations sit beside the
   agent's own transitions;
 * optional starts from demonstrated states (``demo_starts``: that share of training episodes
   begins at a state drawn uniformly from the demonstrations, recovered by replaying their
   actions from their initial states: reference state initialisation, Peng et al. 2018,
-  DeepMimic). The evaluations always start from the task's own initial states;
+  DeepMimic), the humanoid's recipe, for SAC alone never saw a humanoid get up. The
+  evaluations always start from the task's own initial states;
 * ``learning_starts`` uniformly random actions first; then one gradient step per environment
   step; the actor and alpha every ``policy_frequency`` steps, that many times (CleanRL's
   delayed update).
