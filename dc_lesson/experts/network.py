@@ -22,9 +22,9 @@ the learner's own class; so are these, made in two stages:
 
 The student is the task's expert where it meets the floor (``experts.DEFAULT_EXPERT``: walker,
 ant); the humanoid's first SAC run did not (its curve is in ``humanoid.json``; the current
-recipe's run, with the planner's demonstrations, is recorded in ``humanoid-sac.json`` as it
-goes), so there the planner stays the expert and the student is the variant ``"network"``. The expert acts with
-the distilled policy's mean action.
+recipe's run, started half the time at the planner's demonstrated states, is recorded in
+``humanoid-sac.json`` as it goes), so there the planner stays the expert and the student is
+the variant ``"network"``. The expert acts with the distilled policy's mean action.
 """
 
 from __future__ import annotations
