@@ -158,21 +158,28 @@ def test_the_critic_learns_the_demonstrations_rewards(tmp_path):
     assert q_mean[10.0] - q_mean[0.0] > MIN_Q_GAP, q_mean
 
 
-def test_demonstrations_are_required_exactly_with_a_demo_fraction_and_kept_on_resume(tmp_path):
+def test_demonstrations_are_required_exactly_with_a_demo_field():
     with pytest.raises(ValueError, match="demo_fraction"):
         sac.train("cartpole", DEMO)
     with pytest.raises(ValueError, match="demo_fraction"):
         sac.train("cartpole", TINY, demonstrations=_demos(1.0))
     with pytest.raises(ValueError, match="demo_fraction"):
         sac.SACConfig(demo_fraction=1.0)
+
+
+@pytest.mark.parametrize("cfg", [DEMO, dataclasses.replace(DEMO, demo_fraction=0.0,
+                                                           critic_layer_norm=True,
+                                                           demo_starts=0.5)],
+                         ids=["demo minibatches", "demo starts (the humanoid's shape)"])
+def test_a_run_with_demonstrations_resumes_bit_for_bit_and_keeps_them(tmp_path, cfg):
     torch.set_num_threads(1)
-    whole = sac.train("cartpole", DEMO, demonstrations=_demos(1.0))
+    whole = sac.train("cartpole", cfg, demonstrations=_demos(1.0))
     ckpt = tmp_path / "d.sac"
-    sac.train("cartpole", DEMO, checkpoint=ckpt, stop_after_seconds=0,
+    sac.train("cartpole", cfg, checkpoint=ckpt, stop_after_seconds=0,
               demonstrations=_demos(1.0))
     with pytest.raises(ValueError, match="other demonstrations"):
-        sac.train("cartpole", DEMO, checkpoint=ckpt, demonstrations=_demos(2.0))
-    rest = sac.train("cartpole", DEMO, checkpoint=ckpt, demonstrations=_demos(1.0))
+        sac.train("cartpole", cfg, checkpoint=ckpt, demonstrations=_demos(2.0))
+    rest = sac.train("cartpole", cfg, checkpoint=ckpt, demonstrations=_demos(1.0))
     assert rest["done"]
     for (k, p), (_, q) in zip(whole["actor"].state_dict().items(),
                               rest["actor"].state_dict().items()):
