@@ -249,18 +249,9 @@ print("replay identical:", np.array_equal(obs, traj.observations)
 #   whenever the head is low, so a falling planner sees no way back up) and is judged on the
 #   task's own reward. It meets the floor, but it is no Markov policy (its action depends on
 #   random plans, not only on the state), so BC cannot clone it (the floor table below).
-#   Its first SAC run ended each training episode when the head dropped below 0.9 m (Gym's
-#   fallen humanoid), and stayed at a return of about 5 in 500k steps. The reason is in the
-#   planner's demonstrations: dm_control drops the humanoid from a random pose, and its head
-#   passes 0.9 m within about 17 steps in 22 of 25 of them; the planner then gets up. So
-#   that run ended almost every episode before there was anything to learn. The run under
-#   way has no termination and begins half of its training episodes at a state of the
-#   planner's demonstrations (reference state initialisation, Peng et al. 2018:
-#   `SACConfig.demo_starts`), so it meets standing and walking states and tries its own
-#   actions there. Putting the planner's transitions in every minibatch instead (RLPD,
-#   `demo_fraction`) made the critic's values diverge at the demonstrated actions, which the
-#   agent never tries (the measurements are with the recipe, `experts.network`). Until the
-#   run reaches the floor the humanoid has no imitable expert.
+#   Its network expert is being trained: why the first SAC run failed and what the second
+#   does differently is under the SAC curves below. Until that run is done and distilled,
+#   the humanoid has no imitable expert.
 #
 # The table lists, for each task, the expert, its return over 50 episodes, the random
 # policy's, and the mode shares (tasks without demonstrations yet say so).
@@ -412,12 +403,43 @@ display(Markdown("; ".join(
     for t, c in ((t, network.sac_curve(t)) for t in sac_tasks)) + "."))
 
 # %% [markdown]
-# **The humanoid: DAgger from the planner.** SAC did not reach the humanoid's floor, so we
-# tried the other route issue 39 names: ask the planner itself. DAgger (Ross, Gordon and
-# Bagnell 2011) rolls out a mixture of the planner and a student network, has the planner
-# label every state the episodes reach with the action it would take there (it plans from
-# the exact simulator state), and refits the student (BC's 64x64 network) on every label so
-# far (`dc-lesson expert dagger --task humanoid`, `experts/planner_dagger.py`). In round 0
+# **Why the humanoid's first SAC run stayed on the floor.** That run ended each training
+# episode when the head dropped below `tasks.humanoid.FALLEN_HEAD` (Gym's fallen humanoid).
+# The planner's demonstrations show what that meant: dm_control drops the humanoid from a
+# random pose, and even the planner falls first and then gets up. So the run ended almost
+# every episode before there was anything to learn. The run under way has no termination
+# and begins half of its training episodes at a state of the planner's demonstrations
+# (reference state initialisation, Peng et al. 2018: `SACConfig.demo_starts`), so it meets
+# standing and walking states and tries its own actions there. Putting the planner's
+# transitions in every minibatch instead (RLPD, `demo_fraction`) made the critic's values
+# diverge at the demonstrated actions, which the agent never tries (the measurements are
+# written with the recipe, `experts.network.SAC_RECIPES`).
+
+# %%
+from dc_lesson.storage import read_json
+from dc_lesson.tasks import humanoid as humanoid_task
+
+planner_demos = network.sac_demonstrations("humanoid")
+falls = [humanoid_task.fell(t.observations) for t in planner_demos]
+first_fall = np.array([int(np.argmax(f)) for f in falls if f.any()])
+first_run = read_json(network.paths("humanoid")["meta"], "the first humanoid SAC record")
+first_curve = np.array([r["episode_return"] for r in first_run["learning_curve"]])
+display(Markdown(
+    f"In {int((first_fall < 30).sum())} of the planner's {len(planner_demos)} demonstrations "
+    f"the head is below {humanoid_task.FALLEN_HEAD} m within 30 steps (median first step "
+    f"{np.median(first_fall):.0f}); their mean return is "
+    f"{np.mean([t.ret for t in planner_demos]):.0f}. The first run's evaluation returns over "
+    f"{first_run['steps']:,} steps: at most {first_curve.max():.0f}, the last "
+    f"{first_curve[-1]:.0f}."))
+
+# %% [markdown]
+# **The humanoid: DAgger from the planner.** The first SAC run did not reach the humanoid's
+# floor, so we also tried the other route issue 39 names: ask the planner itself. DAgger
+# (Ross, Gordon and Bagnell 2011) rolls out a mixture of the planner and a student network,
+# has the planner label every state the episodes reach with the action it would take there
+# (it plans from the exact simulator state), and refits the student (BC's 64x64 network) on
+# every label so far (`dc-lesson expert dagger --task humanoid`,
+# `experts/planner_dagger.py`). In round 0
 # the planner acts alone; in round r it acts at each step with probability 0.5^r and the
 # student otherwise, so the rounds drift from the planner's states into the student's. Each
 # round is 2 episodes of 400 steps; a label costs one whole plan (about a quarter of a

@@ -47,17 +47,18 @@ EXPERTS_DIR = _storage.DATA / "experts"
 ACTOR_FORMAT, ACTOR_VERSION = "dc_lesson.sac_actor", 1
 
 _SMALL = dict(hidden=(64, 64), log_every=5_000, checkpoint_every=25_000, eval_episodes=2)
-# The expert whose demonstrations a recipe with ``demo_fraction`` > 0 samples from.
+# The expert whose demonstrations a recipe's ``demo_fraction`` and ``demo_starts`` use.
 SAC_DEMOS: dict[str, str] = {"humanoid": "planner"}
 
 SAC_RECIPES: dict[str, SACConfig] = {
     "walker": SACConfig(**_SMALL, total_steps=200_000),
     "ant": SACConfig(**_SMALL, total_steps=300_000),
     # The humanoid (measured on the planner's 25 demonstrations): dm_control starts it in a
-    # random pose, and its head drops below tasks.humanoid.FALLEN_HEAD within about 17 steps
-    # in 22 of 25 episodes even under the planner, which then gets up and walks (mean return
-    # 631). So Gym's fallen-humanoid termination (the 500k-step run of round 3: eval return
-    # 1-11 of 1000: its curve stays in data/experts/humanoid.json) ended nearly every
+    # random pose, and its head drops below tasks.humanoid.FALLEN_HEAD within 30 steps in 19
+    # of 25 episodes (median first step 18) even under the planner, which then gets up and
+    # walks (mean return 631; chapter 00 renders these). So Gym's fallen-humanoid termination
+    # (the 500k-step run of round 3: evaluation returns at most 22 of 1000; its curve stays
+    # in data/experts/humanoid.json) ended nearly every
     # training episode before the agent could learn to rise. No termination, then; and half
     # of the training episodes begin at a state of the planner's demonstrations
     # (``demo_starts``: reference state initialisation), so the agent meets standing and
@@ -68,7 +69,9 @@ SAC_RECIPES: dict[str, SACConfig] = {
     # the entropy bonus then bound the soft value below about 800; with LayerNorm, 104 rising
     # to 193 by 275k (the demonstrations' discounted return-to-go: 59), TD loss 17 -> 121;
     # with the starts as well, TD loss 2.6 -> 79 by 290k. With the starts alone the TD loss
-    # stayed at 0.02-0.05. LayerNorm critics kept (RLPD's; that run had them).
+    # stayed at 0.02-0.2 (growing with the returns), and the evaluations rose from about 2 to
+    # above the floor between 180k and 400k steps (humanoid-sac.json). LayerNorm critics
+    # kept (RLPD's; that run had them).
     # 3M steps: about 8 hours at 100 steps/s, run in chunks (``--hours``) on a machine that
     # keeps data/experts/checkpoints/ between sessions.
     "humanoid": SACConfig(**{**_SMALL, "hidden": (128, 128)}, total_steps=3_000_000,
