@@ -262,8 +262,8 @@ def train(task: str, config: SACConfig = SACConfig(), checkpoint=None, progress=
     seed and the resumed run is the uninterrupted one, bit for bit at one thread).
     ``stop_after_seconds``: stop at the first checkpoint after this much wall time (a chunk).
     ``progress``: a callable given each log row. ``demonstrations``: the trajectories that
-    ``demo_fraction`` samples from (required exactly when it is above 0; a resumed run must be
-    given the same ones).
+    ``demo_fraction`` samples from and ``demo_starts`` starts at (required exactly when either
+    is above 0; a resumed run must be given the same ones, checked by their digest).
     """
     cfg = config
     if (cfg.demo_fraction > 0 or cfg.demo_starts > 0) != (demonstrations is not None):
