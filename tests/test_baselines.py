@@ -226,7 +226,7 @@ def test_gpril_maf_log_prob_is_the_change_of_variables():
 def test_gpril_maf_sampling_with_frozen_weights_gives_the_same_numbers_bit_for_bit():
     """Sampling computes each layer's masked weights and context projection once for its D
     passes; a MADE written out plainly, recomputing both at every pass, gives exactly the same
-    samples (the speed-up changes no number of a stored GPRIL cell)."""
+    samples (the speed-up changes no number on the reader's path)."""
     from torch import nn
     torch.manual_seed(1)
     flow = gpril.ConditionalMAF(6, 4, hidden=(16, 16), n_layers=3)
@@ -258,6 +258,32 @@ def test_gpril_maf_sampling_with_frozen_weights_gives_the_same_numbers_bit_for_b
     x = torch.randn(8, 6)
     assert all(torch.equal(a, b) for a, b in zip(flow.mades[0](x, c[:8]),
                                                 plain(flow.mades[0], x, c[:8])))
+
+
+def test_gpril_maf_sampling_on_the_fast_path_is_the_readers_to_float32_rounding():
+    """The fast path's sampler (NumPy, computing only the two output columns a pass reads)
+    draws the same noise and inverts the same layers: its samples are the reader's path's to
+    float32 rounding, and the flow maps them back onto that noise."""
+    from dc_lesson.nn import fast
+    torch.manual_seed(2)
+    flow = gpril.ConditionalMAF(6, 4, hidden=(16, 16), n_layers=3)
+    for p in flow.parameters():
+        torch.nn.init.normal_(p, std=0.3)
+    flow.set_standardisation(torch.linspace(-1, 1, 6), torch.linspace(0.5, 2, 6),
+                             torch.linspace(1, 2, 4), torch.linspace(0.2, 3, 4))
+    c = 2 * torch.randn(256, 4)
+    want = flow.sample(c, torch.Generator().manual_seed(5))
+    with fast.on():
+        got = flow.sample(c, torch.Generator().manual_seed(5))
+    assert got.dtype == want.dtype == torch.float32 and got.shape == want.shape
+    assert torch.allclose(got, want, rtol=1e-4, atol=1e-4)
+    u, _ = flow.to_base(got, c)
+    noise = torch.randn(256, 6, generator=torch.Generator().manual_seed(5))
+    assert torch.allclose(u, noise, atol=1e-3)
+    # a sampler that ignored the context would land elsewhere
+    with fast.on():
+        other = flow.sample(c + 1, torch.Generator().manual_seed(5))
+    assert (other - want).abs().max() > 0.1
 
 
 def test_gpril_maf_fits_a_conditional_gaussian():
@@ -329,6 +355,26 @@ def test_checkpoint_resume_equals_an_uninterrupted_run(name, demos1, tmp_path):
     other = dataclasses.replace(cfg, seed=4)
     with pytest.raises(PolicyFileError, match="seed"):
         mod.train("reacher1", demos1, other, progress=False, checkpoint=path)
+
+
+def test_gpril_on_the_fast_path_resumes_exactly_and_draws_the_readers_samples(demos1, tmp_path):
+    """The fast path draws every policy step's minibatch and noise in the reader's order
+    before sampling them in one batch: a checkpointed run resumes to the bit, and its first
+    iteration's predecessor likelihood is the reader's to float32 rounding."""
+    from dc_lesson.nn import fast
+    cfg = _tiny("gpril", total_steps=1280)
+    reader = gpril.train("reacher1", demos1, cfg, progress=False)
+    path = tmp_path / "gpril.ckpt"
+    with fast.on():
+        full = gpril.train("reacher1", demos1, cfg, progress=False)
+        gpril.train("reacher1", demos1, cfg, progress=False, checkpoint=path,
+                    checkpoint_every=1, callback=lambda row, pi: row["update"] == 3)
+        resumed = gpril.train("reacher1", demos1, cfg, progress=False, checkpoint=path)
+    _same_log(full.log, resumed.log)
+    _same_state(full.policy, resumed.policy)
+    first, other = full.log[0], reader.log[0]
+    for key in ("state_flow_nll", "action_flow_nll", "expert_nll", "predecessor_nll"):
+        assert abs(first[key] - other[key]) < 1e-5 * max(1.0, abs(other[key])), key
 
 
 def test_bad_configurations_are_refused_with_the_field_named():

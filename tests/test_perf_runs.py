@@ -36,8 +36,22 @@ def test_an_unknown_revision_is_refused_with_the_fix(tmp_path, monkeypatch):
 
 
 def test_a_learner_it_does_not_time_is_refused():
-    with pytest.raises(ValueError, match="not gpril"):
-        runs.benchmark("HEAD", tasks=("reacher1",), learners=("gpril",), repeats=1)
+    with pytest.raises(ValueError, match="not softflow"):
+        runs.benchmark("HEAD", tasks=("reacher1",), learners=("softflow",), repeats=1)
+
+
+def test_every_timed_learner_counts_the_interactions_its_preset_takes():
+    """The rows' steps per second divide by the interactions the lesson preset really takes
+    (the RL-based learners keep them in their PPO settings, DC in its iterations)."""
+    from dc_lesson import budget
+    b = budget.get("lesson")
+    for name in runs.LEARNERS + runs.EXTRA:
+        kind = "dc" if name == "dc-stored" else name
+        cfg = algorithms.get(kind).preset(b, 0)
+        got = runs._env_steps(kind, cfg, "hopper")
+        want = {"bc": 0, "dc": cfg.env_steps("hopper") if kind == "dc" else None}.get(
+            kind, b.il_steps)
+        assert got == want, name
 
 
 @needs_git
@@ -72,7 +86,7 @@ def test_the_dc_stored_run_trains_todays_dc_with_the_stored_numerics(name, numer
     monkeypatch.setitem(algorithms.ALGORITHMS, "dc",
                         dataclasses.replace(algorithms.ALGORITHMS["dc"], train=stub))
     monkeypatch.setattr(algorithms.bc, "warm_start_policy", lambda *a, **kw: None)
-    monkeypatch.setattr(sys, "argv", ["snippet", name, "reacher1"])
+    monkeypatch.setattr(sys, "argv", ["snippet", name, "reacher1", ",".join(runs._WARM)])
     threads = torch.get_num_threads()
     try:
         exec(compile(runs._SNIPPET, "perf-runs-snippet", "exec"), {})

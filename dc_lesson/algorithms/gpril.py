@@ -61,6 +61,14 @@ fresh policy at 618): with w = 0 (BC inside this loop) 1000; with w = 1, 425.  E
 predecessors of expert states are drawn from flows of a poor learner's own experience, so they
 carry that learner's actions.
 
+Speed (sweep workers and benchmarks run ``fast.on()``, :mod:`dc_lesson.nn.fast`): the flows'
+sampler runs its D passes per layer in NumPy (:meth:`MADE.numpy_invert`: each pass only the
+weights it needs, every policy step's predecessors of an iteration in one batch), rollouts take the NumPy forward and the optimisers are fused; the same
+computations to float32 rounding (``tests/test_baselines.py``), so a run on either path is
+another sample of the same experiment.  About 1.4 times faster on hopper
+(``data/results/perf_runs_gpril.json``).  The competence study's GPRIL cells were computed
+before this path existed (torch's kernels throughout).
+
 Determinism: ``seed`` decides the initialisations, one generator for actions and episodes'
 seeds, one for the buffer's tuples and the flows' samples, and one for the expert minibatches.
 A checkpoint holds the networks, optimisers, generators, environments and the buffer.
@@ -85,6 +93,7 @@ from dc_lesson.algorithms import bc as _bc
 from dc_lesson.algorithms import ppo as _ppo
 from dc_lesson.algorithms import base as _base
 from dc_lesson.algorithms.base import TrainResult, check_inputs, load_run, save_run
+from dc_lesson.nn import fast as _fast
 from dc_lesson.nn.policies import ACTION_HIGH, ACTION_LOW, GaussianPolicy
 
 LOG_2PI = math.log(2 * math.pi)
@@ -212,6 +221,45 @@ class MADE(nn.Module):
             return mu, 5.0 * torch.tanh(alpha / 5.0)
         return apply
 
+    @torch.no_grad()
+    def numpy_invert(self, c: np.ndarray, y: np.ndarray) -> np.ndarray:
+        """x with x_i = mu_i(x_{<i}, c) + y_i exp(alpha_i(x_{<i}, c)), i = 1..D, in NumPy: the
+        D passes of :meth:`ConditionalMAF.sample` on the reader's path, to float32 rounding
+        (the fast path, :mod:`dc_lesson.nn.fast`).  Output i sees only the hidden units of
+        degree <= i, and they only the inputs before i: with the units sorted by degree, pass i
+        multiplies the leading blocks of the weights; with a column of ones and the context
+        before x in one column-major input, the first layer is one product on a contiguous
+        block."""
+        n_rows, dim, c_dim = len(c), self.out.weight.shape[0] // 2, c.shape[1]
+        degree = [np.arange(layer.weight.shape[0]) % dim for layer in self.layers]
+        order = [np.argsort(d, kind="stable") for d in degree]
+        counts = [np.searchsorted(np.sort(d), np.arange(dim), side="right") for d in degree]
+        w = [(layer.weight * getattr(self, f"mask{k}")).numpy() for k, layer in
+             enumerate(self.layers)]
+        o0 = order[0]
+        first = np.concatenate([(self.layers[0].bias + self.context.bias).numpy()[o0][None],
+                                self.context.weight.numpy()[o0].T, w[0][o0].T])
+        rest = [(w[k][np.ix_(order[k], order[k - 1])].T, self.layers[k].bias.numpy()[order[k]])
+                for k in range(1, len(w))]
+        w_out = (self.out.weight * getattr(self, f"mask{len(self.layers)}")).numpy()
+        w_out, b_out = w_out[:, order[-1]].T, self.out.bias.numpy()
+        inputs = np.empty((n_rows, 1 + c_dim + dim), np.float32, order="F")
+        inputs[:, 0], inputs[:, 1:1 + c_dim] = 1.0, c
+        for i in range(dim):
+            n = counts[0][i]
+            # (contiguous blocks: a strided one multiplies at half the speed)
+            h = inputs[:, :1 + c_dim + i] @ np.ascontiguousarray(first[:1 + c_dim + i, :n])
+            np.tanh(h, out=h)
+            for k, (wk, bk) in enumerate(rest, 1):
+                m = counts[k][i]
+                h = h @ np.ascontiguousarray(wk[:n, :m])
+                h += bk[:m]
+                np.tanh(h, out=h)
+                n = m
+            out = h @ np.ascontiguousarray(w_out[:n, [i, dim + i]]) + b_out[[i, dim + i]]
+            inputs[:, 1 + c_dim + i] = out[:, 0] + y[:, i] * np.exp(5.0 * np.tanh(out[:, 1] / 5.0))
+        return inputs[:, 1 + c_dim:]
+
 
 class ConditionalMAF(nn.Module):
     """p(x | c): ``n_layers`` MADE affine layers, dimension order reversed between them, on
@@ -252,10 +300,17 @@ class ConditionalMAF(nn.Module):
         return -0.5 * (u ** 2).sum(-1) - 0.5 * self.dim * LOG_2PI + logdet
 
     @torch.no_grad()
-    def sample(self, c, generator: torch.Generator | None = None) -> torch.Tensor:
-        """One x per context row: invert the layers, one dimension at a time."""
+    def sample(self, c, generator: torch.Generator | None = None,
+               noise: torch.Tensor | None = None) -> torch.Tensor:
+        """One x per context row: invert the layers, one dimension at a time.  ``noise``: the
+        base draws u (rows, D) to invert, instead of drawing them from ``generator``."""
         c = (torch.as_tensor(c, dtype=torch.float32) - self.c_mean) / self.c_std
-        u = torch.randn(c.shape[0], self.dim, generator=generator)
+        u = torch.randn(c.shape[0], self.dim, generator=generator) if noise is None else noise
+        if _fast.enabled():   # the same passes in NumPy (MADE.numpy_invert)
+            c_np, u_np = c.numpy(), u.numpy()
+            for made in reversed(self.mades):
+                u_np = made.numpy_invert(c_np, u_np[:, ::-1])
+            return torch.from_numpy(np.ascontiguousarray(u_np)) * self.x_std + self.x_mean
         for made in reversed(self.mades):
             y, x = u.flip(-1), torch.zeros_like(u)
             step = made.frozen(c)
@@ -325,6 +380,24 @@ def predecessors(state_flow: ConditionalMAF, action_flow: ConditionalMAF, target
     return s, a
 
 
+def all_predecessors(state_flow: ConditionalMAF, action_flow: ConditionalMAF, e_obs,
+                     steps: int, batch: int, expert_gen: torch.Generator,
+                     model_gen: torch.Generator):
+    """The fast path's policy steps (:mod:`dc_lesson.nn.fast`): every step's expert indices
+    and predecessors, drawn in the reader's order (per step: the indices, then B_s's noise,
+    then B_a's) but sampled in one pass of each flow, which the policy steps leave unchanged.
+    Returns the indices and both samples, split per step."""
+    idx, us, ua = [], [], []
+    for _ in range(steps):
+        idx.append(torch.randint(len(e_obs), (batch,), generator=expert_gen))
+        us.append(torch.randn(batch, state_flow.dim, generator=model_gen))
+        ua.append(torch.randn(batch, action_flow.dim, generator=model_gen))
+    targets = e_obs[torch.cat(idx)]
+    s = state_flow.sample(targets, noise=torch.cat(us))
+    a = action_flow.sample(torch.cat([s, targets], -1), noise=torch.cat(ua))
+    return idx, s.split(batch), a.split(batch)
+
+
 def standardise(state_flow: ConditionalMAF, action_flow: ConditionalMAF, buffer: Buffer,
                 floor: float = 1e-3) -> None:
     """Both flows' standardisation from the learner's steps in ``buffer`` (std floored)."""
@@ -364,9 +437,10 @@ def train(task: str, demos, config: GPRILConfig = GPRILConfig(), *,
                                     config.flow_layers)
         action_flow = ConditionalMAF(spec.act_dim, 2 * spec.obs_dim, config.flow_hidden,
                                      config.flow_layers)
-    flow_opt = torch.optim.Adam([*state_flow.parameters(), *action_flow.parameters()],
-                                lr=config.flow_lr)
-    pi_opt = torch.optim.AdamW(policy.parameters(), lr=config.lr)
+    # fused on the fast path (dc_lesson.nn.fast)
+    flow_opt = _fast.adam([*state_flow.parameters(), *action_flow.parameters()],
+                          lr=config.flow_lr)
+    pi_opt = _fast.adamw(policy.parameters(), lr=config.lr)
     generator = torch.Generator().manual_seed(sample_seed)
     model_gen = torch.Generator().manual_seed(model_seed)
     expert_gen = torch.Generator().manual_seed(expert_seed)
@@ -392,10 +466,12 @@ def train(task: str, demos, config: GPRILConfig = GPRILConfig(), *,
         start = time.perf_counter()
         # 1. the learner's own experience
         obs, act, ep, finished = [], [], [], []
+        sampler = _fast.GaussianSampler(policy) if _fast.enabled() else None
         with torch.no_grad():
             for _ in range(config.n_steps):
                 o = torch.from_numpy(envs.obs).float()
-                a = policy.sample(o, generator)
+                a = (torch.from_numpy(sampler(envs.obs, generator)[0]) if sampler is not None
+                     else policy.sample(o, generator))
                 _, _, done, f = envs.step(a.numpy())
                 obs.append(o)
                 act.append(a.clamp(ACTION_LOW, ACTION_HIGH))
@@ -412,22 +488,28 @@ def train(task: str, demos, config: GPRILConfig = GPRILConfig(), *,
             s, a, fut, j = sample_tuples(buffer, config.model_batch, config.gamma, model_gen)
             nll_s = -state_flow.log_prob(s, fut).mean()
             nll_a = -action_flow.log_prob(a, torch.cat([s, fut], -1)).mean()
-            flow_opt.zero_grad()
+            _fast.zero_grad(flow_opt)
             (nll_s + nll_a).backward()
-            flow_opt.step()
+            _fast.optimizer_step(flow_opt)
             model_terms.append((float(nll_s.detach()), float(nll_a.detach()),
                                 float(j.double().mean())))
 
         # 3. the policy by likelihood on the expert's pairs and their predecessors
         pi_terms = []
-        for _ in range(config.policy_steps):
-            i = torch.randint(len(e_obs), (config.policy_batch,), generator=expert_gen)
-            ps, pa = predecessors(state_flow, action_flow, e_obs[i], model_gen)
+        drawn = (all_predecessors(state_flow, action_flow, e_obs, config.policy_steps,
+                                  config.policy_batch, expert_gen, model_gen)
+                 if _fast.enabled() and config.policy_steps else None)
+        for k in range(config.policy_steps):
+            if drawn is None:
+                i = torch.randint(len(e_obs), (config.policy_batch,), generator=expert_gen)
+                ps, pa = predecessors(state_flow, action_flow, e_obs[i], model_gen)
+            else:
+                i, ps, pa = drawn[0][k], drawn[1][k], drawn[2][k]
             nll_e = -policy.log_prob(e_obs[i], e_act[i]).mean()
             nll_p = -policy.log_prob(ps, pa.clamp(ACTION_LOW, ACTION_HIGH)).mean()
-            pi_opt.zero_grad()
+            _fast.zero_grad(pi_opt)
             (nll_e + config.predecessor_weight * nll_p).backward()
-            pi_opt.step()
+            _fast.optimizer_step(pi_opt)
             pi_terms.append((float(nll_e.detach()), float(nll_p.detach())))
 
         mt = np.mean(model_terms, 0) if model_terms else [math.nan] * 3
@@ -458,5 +540,6 @@ def train(task: str, demos, config: GPRILConfig = GPRILConfig(), *,
                        "gpril")
 
 
-__all__ = ["Buffer", "ConditionalMAF", "GPRILConfig", "MADE", "predecessors", "preset",
+__all__ = ["Buffer", "ConditionalMAF", "GPRILConfig", "MADE", "all_predecessors",
+           "predecessors", "preset",
            "sample_horizons", "sample_tuples", "sized", "train"]

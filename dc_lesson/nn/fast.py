@@ -31,6 +31,9 @@ the same computations take these kernels:
   ``test_one_step_from_the_same_state_agrees_on_either_path``);
 * NumPy's tanh in a flow (``density._trace``, DC's ``flow.tanh="numpy"``): *not* the same
   bits, within one ulp (``tests/test_softflow.py::test_the_flows_tanh_is_numpys_to_one_ulp...``).
+* GPRIL's flows sampled in NumPy (``gpril.MADE.numpy_invert``): *not* the same bits, the same
+  samples to float32 rounding (``tests/test_baselines.py::test_gpril_maf_sampling_on_the_fast_
+  path_is_the_readers_to_float32_rounding``).
 
 A learner turns a last-bit difference into another trajectory, so a run on the reader's path
 is another sample of the same experiment, not the fast path's numbers.

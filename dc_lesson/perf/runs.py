@@ -43,8 +43,10 @@ from dc_lesson.storage import check_writable, write_result
 
 TASKS = ("reacher4",)
 LEARNERS = ("bc", "ppo", "gail", "dc")
-# On request: today's DC with the flow numerics of the earlier code (dc.STORED_NUMERICS).
-EXTRA = ("dc-stored",)
+# On request: today's DC with the flow numerics of the earlier code (dc.STORED_NUMERICS), and
+# the paper's other baselines (each from the same BC start as GAIL and DC).
+EXTRA = ("dc-stored", "dril", "pwil", "ndi", "gpril")
+_WARM = ("gail", "dc", "dril", "pwil", "ndi", "gpril")   # start from the BC warm start
 NOTES = {"dc": "today's DC defaults: the flow's solver steps 0.5, 3 reward nodes, NumPy's tanh "
                "(before: 0.25, 4 nodes, torch's tanh); learning kept: perf dc-fit --variant "
                "defaults",
@@ -78,7 +80,7 @@ try:
 except ImportError:
     switch = contextlib.nullcontext
 start = None
-if name in ("gail", "dc"):
+if name in sys.argv[3].split(","):
     with switch():
         start = algorithms.bc.warm_start_policy(demos, 0, max_epochs=b.bc_max_epochs)
 t0 = time.perf_counter()
@@ -146,7 +148,8 @@ def run_in(tree: pathlib.Path, learner: str, task: str) -> dict:
            "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "DC_LESSON_BUDGET": "lesson",
            "PYTHONWARNINGS": "ignore"}
     env.setdefault("MUJOCO_GL", "egl")
-    done = subprocess.run([sys.executable, "-c", _SNIPPET, learner, task], cwd=str(tree),
+    done = subprocess.run([sys.executable, "-c", _SNIPPET, learner, task, ",".join(_WARM)],
+                          cwd=str(tree),
                           env=env, capture_output=True, text=True)
     if done.returncode != 0:
         tail = done.stderr.strip().splitlines()[-1:] or ["(no output)"]
@@ -198,9 +201,7 @@ def benchmark(before: str = ISSUE_14, tasks=TASKS, learners=LEARNERS, repeats: i
                                    + "; ".join(diffs))
             kind = "dc" if name == "dc-stored" else name
             cfg = algorithms.get(kind).preset(b, 0)
-            steps = {"bc": 0, "ppo": getattr(cfg, "total_steps", 0),
-                     "gail": cfg.ppo.total_steps if kind == "gail" else 0,
-                     "dc": cfg.env_steps(task) if kind == "dc" else 0}[kind]
+            steps = _env_steps(kind, cfg, task)
             sec = {k: [x["seconds"] for x in v] for k, v in runs.items()}
             med = {k: statistics.median(v) for k, v in sec.items()}
             row = {"learner": name, "task": task, "env_steps": steps,
@@ -215,6 +216,16 @@ def benchmark(before: str = ISSUE_14, tasks=TASKS, learners=LEARNERS, repeats: i
             rows.append(row)
             log(format_row(row))
     return rows
+
+
+def _env_steps(kind: str, cfg, task: str) -> int:
+    """The interactions a learner's lesson preset takes (BC: none)."""
+    if kind == "bc":
+        return 0
+    if hasattr(cfg, "env_steps"):            # DC: iterations x loops x batch
+        return int(cfg.env_steps(task))
+    inner = getattr(cfg, "ppo", cfg)         # the RL-based learners carry PPO's settings
+    return int(getattr(cfg, "total_steps", 0) or getattr(inner, "total_steps", 0))
 
 
 def in_words(rows: list[dict]) -> str:
