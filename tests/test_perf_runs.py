@@ -106,7 +106,8 @@ def test_the_speed_history_is_in_perf_docs_and_chapter_00_only_points_there():
     # format_row prints it, so a remade benchmark shows up as a failing test, not a stale page
     history = (pathlib.Path(runs.__file__).parent / "HISTORY.md").read_text()
     from dc_lesson.storage import read_result
-    for name in ("perf_runs.json", "perf_runs_dc.json", "perf_runs_dc_reacher4.json"):
+    for name in ("perf_runs.json", "perf_runs_dc.json", "perf_runs_dc_reacher4.json",
+                 "perf_runs_gpril.json"):
         rec = read_result(name)
         assert rec["revision"][:12] in history, name
         for row in rec["rows"]:

@@ -62,12 +62,13 @@ predecessors of expert states are drawn from flows of a poor learner's own exper
 carry that learner's actions.
 
 Speed (sweep workers and benchmarks run ``fast.on()``, :mod:`dc_lesson.nn.fast`): the flows'
-sampler runs its D passes per layer in NumPy (:meth:`MADE.numpy_invert`: each pass only the
-weights it needs, every policy step's predecessors of an iteration in one batch), rollouts take the NumPy forward and the optimisers are fused; the same
-computations to float32 rounding (``tests/test_baselines.py``), so a run on either path is
-another sample of the same experiment.  About 1.4 times faster on hopper
-(``data/results/perf_runs_gpril.json``).  The competence study's GPRIL cells were computed
-before this path existed (torch's kernels throughout).
+sampler runs in NumPy (:meth:`MADE.numpy_invert`: each pass multiplies only the weight blocks
+it needs; an iteration's predecessors for every policy step in one batch), rollouts take the
+NumPy forward and the optimisers are fused: the same computations to float32 rounding
+(``tests/test_baselines.py``), so a run on either path is another sample of the same
+experiment.  About 1.6 times faster on hopper (``data/results/perf_runs_gpril.json``,
+``perf/HISTORY.md``).  The competence study's GPRIL cells were computed before this path
+existed (torch's kernels throughout).
 
 Determinism: ``seed`` decides the initialisations, one generator for actions and episodes'
 seeds, one for the buffer's tuples and the flows' samples, and one for the expert minibatches.
