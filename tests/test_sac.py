@@ -74,6 +74,24 @@ def test_a_resumed_run_ends_where_an_uninterrupted_one_does(tmp_path):
     assert not torch.equal(start.mu.weight, whole["actor"].mu.weight)
 
 
+def test_a_finished_run_extended_ends_where_a_longer_run_does(tmp_path):
+    """total_steps only says where a run stops: a finished run resumed with more steps is the
+    uninterrupted longer run, bit for bit; fewer steps than the checkpoint holds are refused."""
+    torch.set_num_threads(1)
+    longer = dataclasses.replace(TINY, total_steps=3000)
+    whole = sac.train("cartpole", longer)
+    ckpt = tmp_path / "run.sac"
+    assert sac.train("cartpole", TINY, checkpoint=ckpt)["done"]
+    rest = sac.train("cartpole", longer, checkpoint=ckpt)
+    assert rest["done"] and rest["steps"] == 3000
+    for (k, p), (_, q) in zip(whole["actor"].state_dict().items(),
+                              rest["actor"].state_dict().items()):
+        assert torch.equal(p, q), k
+    assert [r["eval_return"] for r in whole["log"]] == [r["eval_return"] for r in rest["log"]]
+    with pytest.raises(ValueError, match="past total_steps = 2000"):
+        sac.train("cartpole", TINY, checkpoint=ckpt)
+
+
 def test_a_checkpoint_of_another_config_is_refused(tmp_path):
     ckpt = tmp_path / "run.sac"
     sac.train("cartpole", TINY, checkpoint=ckpt, stop_after_seconds=0)

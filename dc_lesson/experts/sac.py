@@ -300,10 +300,18 @@ def train(task: str, config: SACConfig = SACConfig(), checkpoint=None, progress=
     if ckpt is not None and ckpt.exists():
         fix = f"delete {ckpt} to train from the start"
         st = load_checked(ckpt, CHECKPOINT_FORMAT, CHECKPOINT_VERSION, "SAC checkpoint", fix)
+        # total_steps only says where the run stops (and sizes the buffer, which a run of at
+        # most buffer_size steps never fills), so a run may be extended: the same run as an
+        # uninterrupted longer one
         if not isinstance(st.get("config"), dict) or \
-                {**json_config(SACConfig()), **st["config"]} != json_config(cfg):
+                {**json_config(SACConfig()), **st["config"], "total_steps": cfg.total_steps} \
+                != json_config(cfg):
             raise ValueError(f"the SAC checkpoint {ckpt} was made with another configuration; "
                              f"delete it to train from the start")
+        if not isinstance(st.get("step"), int) or st["step"] > cfg.total_steps:
+            raise ValueError(f"the SAC checkpoint {ckpt} is at step {st.get('step')}, past "
+                             f"total_steps = {cfg.total_steps}; give at least that many, or "
+                             f"{fix}")
         if st.get("demos_sha256") != demo_sha:
             raise ValueError(f"the SAC checkpoint {ckpt} was made with other demonstrations; "
                              f"pass the same ones, or {fix}")
@@ -315,6 +323,8 @@ def train(task: str, config: SACConfig = SACConfig(), checkpoint=None, progress=
             for o, s in zip((q_opt, pi_opt, a_opt), st["opts"]):
                 o.load_state_dict(s)
             size, ptr, step, episode = st["size"], st["ptr"], st["step"], st["episode"]
+            if size == step:   # nothing overwritten yet: the next slot, in a longer buffer too
+                ptr = step % n
             for k in buf:   # a checkpoint from before ``done`` existed holds no terminal
                 if k in st["buffer"]:
                     buf[k][:size] = st["buffer"][k].numpy()
