@@ -231,8 +231,8 @@ print("replay identical:", np.array_equal(obs, traj.observations)
 #   start states, so each runs about half the episodes; `halfcheetah2-coin` flips a coin). The hopper's PPO trains as Gym's does, with a
 #   fallen hopper ending its training episode (`PPOConfig(terminate="hopper-fall")`, for
 #   training only: the task itself never ends early).
-# * `walker` and `ant`: **soft actor-critic (SAC), distilled into the learners' own
-#   network**. SAC (`dc_lesson.experts.sac`, CleanRL's loop: a tanh-squashed Gaussian actor,
+# * `walker`, `ant` and `humanoid`: **soft actor-critic (SAC), distilled into the learners'
+#   own network**. SAC (`dc_lesson.experts.sac`, CleanRL's loop: a tanh-squashed Gaussian actor,
 #   twin Q networks with Polyak-averaged targets, a tuned entropy temperature) reuses every
 #   transition many times, which is what a 2-core machine needs; our PPO stayed far below
 #   these floors after 5M steps (the curves below). The SAC actor is then copied into a
@@ -240,18 +240,17 @@ print("replay identical:", np.array_equal(obs, traj.observations)
 #   roll out the student, label the states it visits with the SAC actor's action, refit on
 #   everything labelled so far (`dc_lesson.experts.network.distil`). So these experts are
 #   Markov policies in the class every learner fits, as the paper's TRPO experts were.
-# * `humanoid`: still a **planner on the true simulator**, the first expert of all three
-#   (on walker and ant it is kept as the variant `planner`: `load_expert("walker",
-#   "planner")`, `data/demos/walker-planner.npz`). Predictive sampling keeps a plan for the
-#   next half second and at every control step tries 127 noisy variants of it on a copy of
-#   the simulator, keeping the best; the humanoid plans with its walk reward plus a shaped
-#   "stay tall and upright" term (`planner.PLANNING_REWARDS`: the walk reward is almost zero
+# * The first expert of all three was a **planner on the true simulator**, kept as the
+#   variant `planner` (`load_expert("humanoid", "planner")`,
+#   `data/demos/humanoid-planner.npz`). Predictive sampling keeps a plan for the next half
+#   second and at every control step tries 63 to 127 noisy variants of it on a copy of the
+#   simulator, keeping the best; the humanoid plans with its walk reward plus a shaped "stay
+#   tall and upright" term (`planner.PLANNING_REWARDS`: the walk reward is almost zero
 #   whenever the head is low, so a falling planner sees no way back up) and is judged on the
-#   task's own reward. It meets the floor, but it is no Markov policy (its action depends on
-#   random plans, not only on the state), so BC cannot clone it (the floor table below).
-#   Its network expert is being trained: why the first SAC run failed and what the second
-#   does differently is under the SAC curves below. Until that run is done and distilled,
-#   the humanoid has no imitable expert.
+#   task's own reward. It meets the floors, but it is no Markov policy (its action depends on
+#   random plans, not only on the state), so BC cannot clone it (the walker's row below).
+#   The humanoid's network needed a second SAC recipe: why the first run failed and what the
+#   second does differently is under the SAC curves below.
 #
 # The table lists, for each task, the expert, its return over 50 episodes, the random
 # policy's, and the mode shares (tasks without demonstrations yet say so).
@@ -407,13 +406,13 @@ display(Markdown("; ".join(
 # episode when the head dropped below `tasks.humanoid.FALLEN_HEAD` (Gym's fallen humanoid).
 # The planner's demonstrations show what that meant: dm_control drops the humanoid from a
 # random pose, and even the planner falls first and then gets up. So the run ended almost
-# every episode before there was anything to learn. The run under way has no termination
-# and begins half of its training episodes at a state of the planner's demonstrations
-# (reference state initialisation, Peng et al. 2018: `SACConfig.demo_starts`), so it meets
-# standing and walking states and tries its own actions there. Putting the planner's
-# transitions in every minibatch instead (RLPD, `demo_fraction`) made the critic's values
-# diverge at the demonstrated actions, which the agent never tries (the measurements are
-# written with the recipe, `experts.network.SAC_RECIPES`).
+# every episode before there was anything to learn. The second recipe, the one in the curve
+# above, has no termination and begins half of its training episodes at a state of the
+# planner's demonstrations (reference state initialisation, Peng et al. 2018:
+# `SACConfig.demo_starts`), so it meets standing and walking states and tries its own actions
+# there. Putting the planner's transitions in every minibatch instead (RLPD, `demo_fraction`)
+# made the critic's values diverge at the demonstrated actions, which the agent never tries
+# (the measurements are written with the recipe, `experts.network.SAC_RECIPES`).
 
 # %%
 from dc_lesson.storage import read_json
@@ -422,7 +421,9 @@ from dc_lesson.tasks import humanoid as humanoid_task
 planner_demos = network.sac_demonstrations("humanoid")
 falls = [humanoid_task.fell(t.observations) for t in planner_demos]
 first_fall = np.array([int(np.argmax(f)) for f in falls if f.any()])
-first_run = read_json(network.paths("humanoid")["meta"], "the first humanoid SAC record")
+first_run = read_json(network.FIRST_HUMANOID_RUN, "the first humanoid SAC record")
+second = network.sac_curve("humanoid")
+above = second["steps"][second["eval_return"] >= floors.FLOORS["humanoid"]]
 first_curve = np.array([r["episode_return"] for r in first_run["learning_curve"]])
 display(Markdown(
     f"In {int((first_fall < 30).sum())} of the planner's {len(planner_demos)} demonstrations "
@@ -430,7 +431,12 @@ display(Markdown(
     f"{np.median(first_fall):.0f}); their mean return is "
     f"{np.mean([t.ret for t in planner_demos]):.0f}. The first run's evaluation returns over "
     f"{first_run['steps']:,} steps: at most {first_curve.max():.0f}, the last "
-    f"{first_curve[-1]:.0f}."))
+    f"{first_curve[-1]:.0f}. The second recipe's run "
+    + (f"first evaluated above the floor at {above[0]:,} steps, after a long stretch at "
+       f"the random level (an earlier run of the same recipe on another machine, other "
+       f"rounding and so another trajectory, took off hundreds of thousands of steps "
+       f"sooner: the recipe's comment gives both)." if len(above) else
+       f"has not yet been evaluated above the floor ({second['steps'][-1]:,} steps).")))
 
 # %% [markdown]
 # **The humanoid: DAgger from the planner.** The first SAC run did not reach the humanoid's
@@ -479,8 +485,8 @@ else:
                  f"{r['n_episodes']} whole episodes) against the floor of "
                  f"{floors.FLOORS['humanoid']:.0f}: " + (
                      "it meets the floor." if meets else
-                     "far below it, so the humanoid keeps the planner as its expert and has "
-                     "no imitable one (the benchmark leaves the humanoid out, chapter 06)."))
+                     "far below it; the humanoid's expert is the second SAC recipe's "
+                     "network instead (above)."))
     else:
         said += (f" The run has not finished ({len(rounds)} of "
                  f"{dagger['config']['rounds']} rounds on record).")

@@ -29,8 +29,16 @@ def test_the_design_follows_the_headroom_choice_and_says_why_where_it_falls_back
     assert ant["protocol"] == headroom.PREFERENCE[0] and ant["every"] == headroom.EVERY
     assert ant["counts"] == list(bm.FALLBACK_COUNTS) and "neighbouring" in ant["why"]
     assert bm.design("halfcheetah", HEADROOM)["counts"] == []       # no headroom row on record
-    human = bm.design("humanoid", HEADROOM)                         # the planner expert
-    assert human["counts"] == [] and "planner" in human["why"]
+    assert bm.design("humanoid", HEADROOM)["counts"] == []          # none on record either
+
+
+def test_a_task_whose_default_expert_is_a_planner_has_no_row(monkeypatch):
+    real = bm._data.manifest_entry
+    monkeypatch.setattr(bm._data, "manifest_entry", lambda task, **kw: (
+        {"expert": {"kind": "planner"}} if task == "hopper" else real(task, **kw)))
+    planned = bm.design("hopper", HEADROOM)
+    assert planned["counts"] == [] and "planner" in planned["why"]
+    assert bm.design("walker", HEADROOM)["counts"] == [11, 25]
 
 
 def test_only_learners_that_passed_the_gate_are_rows_and_the_others_say_why():

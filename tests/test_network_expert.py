@@ -130,21 +130,20 @@ def test_the_recipes_are_recorded_with_the_expert():
         assert meta["learning_curve"] and meta["dagger"]
 
 
-def test_sac_demonstrations_are_named_by_their_expert(monkeypatch):
-    """The humanoid's SAC samples the planner's demonstrations: today the unnamed set (the
-    planner is the default expert), once the network is the default the ``planner`` variant,
-    never the network's own."""
-    from dc_lesson import experts
-    from dc_lesson.data.store import DemoError
+def test_the_humanoids_first_sac_run_is_kept_for_its_curve():
+    from dc_lesson.experts import floors
+    meta = json.loads(network.FIRST_HUMANOID_RUN.read_text())
+    assert "humanoid-fall" in str(meta["sac_config"]) and meta["steps"] == 500_000
+    assert max(r["episode_return"] for r in meta["learning_curve"]) < floors.FLOORS["humanoid"]
+
+
+def test_sac_demonstrations_are_named_by_their_expert():
+    """The humanoid's SAC samples the planner's demonstrations: the ``planner`` variant since
+    the network became the default expert (the unnamed set before), never the network's own."""
     demos = network.sac_demonstrations("humanoid")
     assert len(demos) == 25 and all(t.task == "humanoid" for t in demos)
-    assert data.manifest_entry("humanoid")["expert"]["kind"] == "planner"
-    monkeypatch.setitem(experts.DEFAULT_EXPERT, "humanoid", "network")
-    try:
-        again = network.sac_demonstrations("humanoid")
-    except DemoError as e:   # the planner's set is not yet stored under its variant
-        assert "humanoid-planner" in str(e)
-    else:
-        assert data.manifest_entry("humanoid", variant="planner")["expert"]["kind"] == "planner"
-        assert len(again) == 25
+    planner = data.load_demos("humanoid", variant="planner").trajectories
+    assert all(np.array_equal(a.actions, b.actions) for a, b in zip(demos, planner))
+    assert data.manifest_entry("humanoid", variant="planner")["expert"]["kind"] == "planner"
+    assert data.manifest_entry("humanoid")["expert"]["kind"] != "planner"
     assert network.sac_demonstrations("walker") is None   # no demo_fraction in its recipe

@@ -1,9 +1,10 @@
 """DAgger from the planner: a Markov network expert where SAC did not reach the floor (the
 humanoid, issue 39).  ``dc-lesson expert dagger --task humanoid [--hours H]``.
 
-Why.  The humanoid's expert is a sampling planner (:mod:`dc_lesson.experts.planner`); BC
-from its 25 demonstrations scores the random level (``clonable.json``), and SAC on the task's
-reward stayed near 0 after 500,000 steps (``humanoid-sac.json``).  A planner's action depends
+Why.  The humanoid's first expert was a sampling planner (:mod:`dc_lesson.experts.planner`);
+BC from its 25 demonstrations scored the random level, and SAC's first run on the task's
+reward stayed near 0 after 500,000 steps (``humanoid-fall.json``; a second SAC recipe later
+reached the floor and is the expert now, :mod:`dc_lesson.experts.network`).  A planner's action depends
 on its nominal plan, a memory no Markov policy has, and a clone of its demonstrations drifts
 into states the planner never showed.  DAgger (Ross, Gordon and Bagnell 2011) asks the
 oracle for its action at the states the *student* visits, so the data cover the drift.

@@ -12,9 +12,9 @@ the band of the paper's BC, 0.4-0.7, else whole demonstrations; the fewest such 
 most).  Where that rule found no count (ant: BC jumps past the band between neighbouring
 counts and falls back below it), the task runs the preferred protocol at
 :data:`FALLBACK_COUNTS`, the counts of most tasks, and the aggregate says why.  A task whose
-default expert is still the sampling planner (humanoid until issue 39 gives it a network)
-has no row: BC from it stays at the random level at every count (``headroom.json``), so
-every learner built on BC would measure nothing.  The subsampling offsets are drawn from the
+default expert is a sampling planner would have no row (the humanoid's, until its SAC
+network met the floor in December 2026): BC from a planner stays at the random level at
+every count, so every learner built on BC would measure nothing.  The subsampling offsets are drawn from the
 cell's seed (``data.subsample``), so BC and every learner of a seed see the same pairs.
 
 **Learners** (:func:`learners`): BC (the start every other row shares, trained as the headroom

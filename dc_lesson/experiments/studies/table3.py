@@ -77,10 +77,10 @@ LEARNERS = ("bc", "gail", "dril", "pwil", "ndi", "gpril", "dc")
 
 # The demonstrations the stored grid ran on (December 2026): walker's and ant's came from the
 # sampling planner, their experts then, which is today the variant "planner" (their default
-# experts are SAC networks since, experts.network; humanoid's is still the planner). The grid
+# experts are SAC networks since, experts.network: humanoid's since 2026-12-07). The grid
 # keeps reading what it ran on, so a rechecked cell is the stored one; the rerun of issue 41
 # moves it.
-DEMO_VARIANT = {"walker": "planner", "ant": "planner"}
+DEMO_VARIANT = {"walker": "planner", "ant": "planner", "humanoid": "planner"}
 
 
 def demos_of(task: str, n: int | None = None):
