@@ -308,7 +308,7 @@ def train(task: str, config: SACConfig = SACConfig(), checkpoint=None, progress=
                 != json_config(cfg):
             raise ValueError(f"the SAC checkpoint {ckpt} was made with another configuration; "
                              f"delete it to train from the start")
-        if not isinstance(st.get("step"), int) or st["step"] > cfg.total_steps:
+        if isinstance(st.get("step"), int) and st["step"] > cfg.total_steps:
             raise ValueError(f"the SAC checkpoint {ckpt} is at step {st.get('step')}, past "
                              f"total_steps = {cfg.total_steps}; give at least that many, or "
                              f"{fix}")
