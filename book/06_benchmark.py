@@ -221,9 +221,16 @@ display(Markdown("\n".join(
 _cost = []
 for _study in (_bench.STUDY, _ablations.STUDY, _modes.STUDY):
     _p = _sweep.plan(_study, _lesson)
-    _cost.append(f"`{_study.name}`: {len(_p['grid'])} cells, "
-                 + (f"{len(_p['todo'])} still to run, about {_p['cpu_seconds'] / 3600:.1f} "
-                    f"CPU-hours left" if _p["todo"] else "complete")
+    # A study also runs the cells it reads (the reference study's expert floor): counted
+    # apart, so this line and the aggregate's "N of its M cells on record" agree.
+    _own = [c for c in _p["grid"] if c.study == _study.name]
+    _own_left = sum(c.study == _study.name for c in _p["todo"])
+    _read = len(_p["grid"]) - len(_own)
+    _cost.append(f"`{_study.name}`: {len(_own)} cells of its own"
+                 + (f" and {_read} it reads from other studies" if _read else "") + ", "
+                 + (f"{len(_p['todo'])} still to run ({_own_left} of its own), about "
+                    f"{_p['cpu_seconds'] / 3600:.1f} CPU-hours left" if _p["todo"]
+                    else "complete")
                  + (f" (and {_p['unknown']} cells never measured)" if _p["unknown"] else ""))
 _ledger = [r for r in _sweep.ledger(_lesson) if not r["superseded"]]
 _final_done = sum(r["cpu_done"] for r in _ledger) / 3600
