@@ -221,15 +221,10 @@ display(Markdown("\n".join(
 _cost = []
 for _study in (_bench.STUDY, _ablations.STUDY, _modes.STUDY):
     _p = _sweep.plan(_study, _lesson)
-    # A study also runs the cells it reads (the reference study's expert floor): counted
-    # apart, so this line and the aggregate's "N of its M cells on record" agree.
-    _own = [c for c in _p["grid"] if c.study == _study.name]
-    _own_left = sum(c.study == _study.name for c in _p["todo"])
-    _read = len(_p["grid"]) - len(_own)
-    _cost.append(f"`{_study.name}`: {len(_own)} cells of its own"
-                 + (f" and {_read} it reads from other studies" if _read else "") + ", "
-                 + (f"{len(_p['todo'])} still to run ({_own_left} of its own), about "
-                    f"{_p['cpu_seconds'] / 3600:.1f} CPU-hours left" if _p["todo"]
+    _cost.append(f"`{_study.name}`: {_sweep.count_words(_p)}, "
+                 + (f"{len(_p['todo'])} still to run"
+                    + (f" ({_p['read_todo']} of them read)" if _p["read_todo"] else "")
+                    + f", about {_p['cpu_seconds'] / 3600:.1f} CPU-hours left" if _p["todo"]
                     else "complete")
                  + (f" (and {_p['unknown']} cells never measured)" if _p["unknown"] else ""))
 _ledger = [r for r in _sweep.ledger(_lesson) if not r["superseded"]]
@@ -838,7 +833,7 @@ if t3 is not None:
                                         _bench.TASKS)
     if cost is not None:
         display(Markdown(
-            f"The benchmark at budget `{t3['budget']}`: {len(plan['grid'])} cells, "
+            f"The benchmark at budget `{t3['budget']}`: {_sweep.count_words(plan)}, "
             f"{len(plan['grid']) - len(plan['todo'])} done in {done_hours:.1f} CPU-hours; "
             + (f"{len(plan['todo'])} left, estimated at {plan['cpu_seconds'] / 3600:.1f} "
                f"CPU-hours." if plan["todo"] else "complete.")))
@@ -976,7 +971,7 @@ if t3_old is not None:       # —: no such cell (no expert row on the planner t
                                         ("expert", *study.LEARNERS), study.TASKS)
 if cost is not None:
     display(Markdown(
-        f"The grid at budget `{t3_old['budget']}`: {len(plan['grid'])} cells, "
+        f"The grid at budget `{t3_old['budget']}`: {_sweep.count_words(plan)}, "
         f"{len(plan['grid']) - len(plan['todo'])} done in {done_hours:.1f} CPU-hours; "
         + (f"{len(plan['todo'])} left, estimated at {plan['cpu_seconds'] / 3600:.1f} "
            f"CPU-hours, so the whole grid is about "

@@ -78,6 +78,9 @@ def test_the_dry_run_estimates_from_measured_cells(uninterrupted, tmp_path):
     study = studies.get("bc_demos")
     p = sweep.plan(study, TINY, ONLY, root_a)
     assert p["todo"] == [] and p["cpu_seconds"] == 0
+    # The reference floor it reads is counted apart from its own cells (chapter 06's lines).
+    assert (p["read"], p["read_todo"]) == (1, 0)
+    assert sweep.count_words(p) == "5 cells (4 its own, 1 read from other studies)"
     # Copy the finished cells but one: its estimate is the wall time of its measured twin.
     for src in root_a.glob("*/*/*"):
         dst = tmp_path / src.relative_to(root_a)
@@ -89,6 +92,7 @@ def test_the_dry_run_estimates_from_measured_cells(uninterrupted, tmp_path):
     victim.unlink()
     p = sweep.plan(study, TINY, ONLY, tmp_path)
     assert [c.seed for c in p["todo"]] == [1] and p["cpu_seconds"] == pytest.approx(twin)
+    assert p["read_todo"] == 0      # the missing cell is its own
     assert "to run" in sweep.format_plan(study, TINY, p, 1)
 
 

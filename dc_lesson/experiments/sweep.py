@@ -183,7 +183,18 @@ def plan(study: _cells.Study, b: _budget.Budget, only=(), root=None, workers: in
     known = [e for e in est if e is not None]
     return {"grid": grid, "todo": todo, "estimates": est,
             "cpu_seconds": sum(known), "unknown": len(est) - len(known),
-            "wall_seconds": sum(known) / max(1, workers)}
+            "wall_seconds": sum(known) / max(1, workers),
+            # the cells of other studies it reads (the reference floor), counted apart so
+            # that a plan's count and an aggregate's "N of its M cells" can be told apart
+            "read": sum(c.study != study.name for c in grid),
+            "read_todo": sum(c.study != study.name for c in todo)}
+
+
+def count_words(p: dict) -> str:
+    """A plan's cells in words: "252 cells (245 its own, 7 read from other studies)"."""
+    n, read = len(p["grid"]), p["read"]
+    return f"{n} cells" + (f" ({n - read} its own, {read} read from other studies)"
+                           if read else "")
 
 
 def _iso(since: str, flag: str = "--priced-since") -> str:
