@@ -168,6 +168,7 @@ def test_comparability_is_equality_within_the_smallest_effect_or_better():
     # one seed has no interval: the evidence says so, never "[nan, nan]"
     one = _by(t3.verdicts(_single(0.0, 0.01, 0.2, n_seeds=1)))[c.COMPARABLE.name]
     assert "(no interval)" in one.evidence and "nan" not in one.evidence
+    assert "over 1 seed ->" in one.evidence and "1 seeds" not in one.evidence
 
 
 def test_bc_growth_compares_the_fewest_with_the_most_demonstrations_and_curves_are_judged():

@@ -385,7 +385,7 @@ def evidence(claim: Claim, entries, note: str = "") -> str:
         p = f", p (Holm) {e[6]:.3f}" if np.isfinite(e[6]) else ""
         word = NOT_JUDGED if kind(e[1]) == NOT_JUDGED else e[1]
         parts.append(f"{label(e[0])}: {claim.a} - {claim.b} = {fmt_num(e[2])} {band} over "
-                     f"{e[5]} seeds{p} -> {word}")
+                     f"{e[5]} seed{'s' if e[5] != 1 else ''}{p} -> {word}")
     return ("; ".join(parts) or "no paired results") + (f" ({note})" if note else "")
 
 
