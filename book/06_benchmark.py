@@ -286,8 +286,8 @@ else:
         if o["row"] == "bc":
             start.setdefault((o["task"], o["n_demos"]), []).append(o["scaled_return"])
     fewest = [(d["task"], d["counts"][0]) for d in designs if d["counts"]]
-    room_at = [f"{t} at {n}: {np.mean(start[(t, n)]):.2f} ({len(start[(t, n)])} seed{'s' * (len(start[(t, n)]) != 1)})"
-               for t, n in fewest if (t, n) in start]
+    room_at = [f"{t} at {n}: {np.mean(v):.2f} ({len(v)} seed{'s' if len(v) != 1 else ''})"
+               for t, n in fewest if (v := start.get((t, n)))]
     if room_at:
         display(Markdown(
             "**The room BC leaves**, BC's mean scaled return at each task's fewest "
