@@ -505,7 +505,10 @@ else:
 # whole PPO batches and may stop just short of the last mark; the claims read from these
 # curves ("DC is faster", "DC is more stable") compare the learners on the checkpoints all of
 # them reached (`table_three._common_curves`). Beside the curves: the common BC start at 0
-# interactions and the expert's 1; the band is the 95% t interval over seeds.
+# interactions and the expert's 1; the band is the 95% t interval over seeds. The last point
+# is not Table III's entry: that scores the final policy, after the last checkpoint, on 20
+# episodes (at the lesson budget), so the two differ by a stretch of training and by the
+# noise of 5 episodes.
 
 # %%
 tasks11 = [t for t in _bench.TASKS if t3 is not None and table_three.figure11(t3, t)]
