@@ -43,3 +43,22 @@ def test_ci_runs_exactly_the_test_command_of_the_readme():
     assert len(test_cmds) == 1, "README must give one test command"
     ci = (ROOT / ".ci" / "run").read_text().splitlines()
     assert test_cmds[0] in [line.strip() for line in ci]
+
+
+def test_readme_cell_counts_are_the_stored_aggregates():
+    # README quotes each grid's size; it is prose no notebook renders, so a rerun grid must
+    # not leave it stale: every count it states is the stored aggregate's, and complete.
+    from dc_lesson.storage import read_result
+
+    text = " ".join((ROOT / "README.md").read_text().split())
+    said = re.search(r"Every committed grid is complete at the `lesson` budget \((.*?)\)", text)
+    assert said, "README lost its sentence on the committed grids"
+    files = {"Table I": "table1", "Table III": "table3", "the competence study": "competence",
+             "benchmark": "benchmark", "ablations": "ablations", "modes": "modes"}
+    counts = {name: int(n) for name, n in
+              re.findall(r"(Table III|Table I|the competence study|benchmark|ablations|modes)"
+                         r" (\d+)", said.group(1))}
+    assert set(counts) == set(files), counts
+    for name, n in counts.items():
+        stored = read_result(f"{files[name]}.json")
+        assert stored["complete"] and stored["cells"]["n"] == n, (name, n, stored["cells"])
