@@ -517,8 +517,7 @@ if tasks11:
     fig, axes = panel_grid(len(tasks11))
     for ax, task in zip(axes.flat, tasks11):
         # every curve cut at the checkpoints all of them reached, as the claims read them
-        curves = table_three.figure11({"observations": table_three._common_curves([
-            o for o in t3["observations"] if o["n_demos"] == fewest[task]])}, task)
+        curves = table_three.figure11(t3, task, fewest[task])
         for row, per_seed in sorted(curves.items()):
             steps = np.array([p[0] for p in per_seed[0]])
             values = np.array([[p[1] for p in c] for c in per_seed])

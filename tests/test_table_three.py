@@ -62,7 +62,7 @@ def test_figure_readers_group_sort_and_keep_seeds():
     rec = {"table": [{"task": "ant", "n_demos": n, "row": "dc", "n_seeds": 2,
                       "scaled_return_mean": n / 25, "scaled_return_lo": 0, "scaled_return_hi": 1}
                      for n in (25, 4, 11)],
-           "observations": [{"task": "ant", "row": "gail", "seed": s,
+           "observations": [{"task": "ant", "n_demos": 4, "row": "gail", "seed": s,
                              "curve": [{"steps": 10, "scaled_return": 0.1 * s},
                                        {"steps": 20, "scaled_return": 0.2 * s}]}
                             for s in range(3)]}
@@ -70,6 +70,14 @@ def test_figure_readers_group_sort_and_keep_seeds():
     assert n.tolist() == [4, 11, 25] and mean.tolist() == [4 / 25, 11 / 25, 1.0]
     curves = t3.figure11(rec, "ant")["gail"]
     assert len(curves) == 3 and curves[2] == [(10, 0.2), (20, 0.4)]
+    # the fewest count by default, another on request; every curve cut at the checkpoints
+    # all of that count's curves reached (a learner one batch short of the last mark)
+    rec["observations"] += [{"task": "ant", "n_demos": 11, "row": r, "seed": 0,
+                             "curve": [{"steps": k, "scaled_return": 0.5} for k in ks]}
+                            for r, ks in (("dc", (10, 20, 30)), ("dril", (10, 20)))]
+    assert set(t3.figure11(rec, "ant")) == {"gail"}
+    at11 = t3.figure11(rec, "ant", 11)
+    assert set(at11) == {"dc", "dril"} and at11["dc"] == [[(10, 0.5), (20, 0.5)]]
     rec1 = {"mean": {"observations": [
         {"task": "reacher4", "row": r, "seed": s, "emd": 0.1 * s, "scaled_return": 0.5}
         for r in ("expert", "dc", "dc-raw") for s in range(4)]}}

@@ -162,14 +162,18 @@ def figure9(rec: dict, task: str, measure: str = "scaled_return") -> dict:
     return {k: tuple(np.array(v, float).T) for k, v in lines.items()}
 
 
-def figure11(rec: dict, task: str) -> dict:
-    """``{learner: [(steps, scaled_return), ...] per seed}``: the checkpoint curves at the
-    fewest demonstrations (deterministic evaluations, not training-episode returns)."""
+def figure11(rec: dict, task: str, n_demos: int | None = None) -> dict:
+    """``{learner: [(steps, scaled_return), ...] per seed}``: the checkpoint curves at
+    ``n_demos`` (default: the task's fewest count with curves), deterministic evaluations,
+    not training-episode returns, each cut at the checkpoints every curve there reached
+    (``_common_curves``, as the claims read them)."""
+    obs = [o for o in rec["observations"] if o["task"] == task and o.get("curve")]
+    if n_demos is None and obs:
+        n_demos = min(o["n_demos"] for o in obs)
     out: dict = {}
-    for o in rec["observations"]:
-        if o["task"] == task and o.get("curve"):
-            out.setdefault(o["row"], []).append(
-                [(p["steps"], p["scaled_return"]) for p in o["curve"]])
+    for o in _common_curves([o for o in obs if o["n_demos"] == n_demos]):
+        out.setdefault(o["row"], []).append(
+            [(p["steps"], p["scaled_return"]) for p in o["curve"]])
     return out
 
 
